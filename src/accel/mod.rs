@@ -1,0 +1,69 @@
+//! Ray-scene intersection structures (plug-ins chosen by name: `none`, `bvh`).
+//!
+//! Every implementation uses [`crate::geometry::intersect_triangle`] on the same
+//! precomputed (v0, e1, e2) data, so all return the same closest hit.
+
+pub mod bvh;
+pub mod linear;
+
+use crate::geometry::{Hit, Ray};
+use glam::Vec3;
+
+/// Traversal counters, kept per thread and summed afterwards (no atomics in the
+/// hot loop).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalStats {
+    /// Closest-hit queries.
+    pub rays: u64,
+    /// Any-hit (shadow) queries.
+    pub shadow_rays: u64,
+    /// Ray/box tests.
+    pub node_tests: u64,
+    /// Ray/triangle tests.
+    pub tri_tests: u64,
+}
+
+impl TraversalStats {
+    /// Adds another set of counters.
+    pub fn add(&mut self, o: &TraversalStats) {
+        self.rays += o.rays;
+        self.shadow_rays += o.shadow_rays;
+        self.node_tests += o.node_tests;
+        self.tri_tests += o.tri_tests;
+    }
+    /// All queries.
+    pub fn total_rays(&self) -> u64 {
+        self.rays + self.shadow_rays
+    }
+}
+
+/// An acceleration structure over a fixed triangle list.
+pub trait Accel: Send + Sync {
+    /// Configuration name.
+    fn name(&self) -> &'static str;
+    /// Closest hit with 0 < t < t_max.
+    fn intersect(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit>;
+    /// True when anything is hit with 0 < t < t_max (early exit).
+    fn occluded(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool;
+    /// Bytes used by the structure (nodes + its triangle copy).
+    fn memory_bytes(&self) -> usize;
+}
+
+/// Triangle in the form the intersection test wants.
+#[derive(Clone, Copy, Debug)]
+pub struct PreTriangle {
+    /// First vertex.
+    pub v0: Vec3,
+    /// v1 − v0.
+    pub e1: Vec3,
+    /// v2 − v0.
+    pub e2: Vec3,
+}
+
+impl PreTriangle {
+    /// From three vertices.
+    #[inline]
+    pub fn new(t: &[Vec3; 3]) -> Self {
+        PreTriangle { v0: t[0], e1: t[1] - t[0], e2: t[2] - t[0] }
+    }
+}

@@ -1,0 +1,88 @@
+//! Pinhole perspective camera following the scene contract: full vertical field of
+//! view, pixel (0,0) top-left, +x right and +y down in the image, `up` up.
+
+use crate::geometry::Ray;
+use glam::Vec3;
+
+/// Pinhole camera.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: Vec3,
+    /// Point looked at.
+    pub look_at: Vec3,
+    /// Up vector.
+    pub up: Vec3,
+    /// Full vertical field of view in degrees.
+    pub fov_y_deg: f32,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    forward: Vec3,
+    right: Vec3,
+    up_img: Vec3,
+    tan_half: f32,
+}
+
+impl Camera {
+    /// Builds a camera; fails on a degenerate frame, field of view or resolution.
+    pub fn new(eye: Vec3, look_at: Vec3, up: Vec3, fov_y_deg: f32, width: u32, height: u32) -> Result<Self, String> {
+        if !(eye.is_finite() && look_at.is_finite() && up.is_finite()) {
+            return Err("camera eye, look_at and up must be finite".into());
+        }
+        if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+            return Err(format!("camera fov_y_deg must be in (0, 180), got {fov_y_deg}"));
+        }
+        if width == 0 || height == 0 {
+            return Err(format!("camera resolution must be positive, got {width}x{height}"));
+        }
+        let forward = (look_at - eye).normalize_or_zero();
+        if forward == Vec3::ZERO {
+            return Err("camera eye and look_at coincide".into());
+        }
+        let right = forward.cross(up).normalize_or_zero();
+        if right == Vec3::ZERO {
+            return Err("camera up is zero or parallel to the viewing direction".into());
+        }
+        let up_img = right.cross(forward);
+        Ok(Camera { eye, look_at, up, fov_y_deg, width, height, forward, right, up_img, tan_half: (fov_y_deg.to_radians() * 0.5).tan() })
+    }
+
+    /// Same camera at another resolution.
+    pub fn with_resolution(&self, width: u32, height: u32) -> Result<Self, String> {
+        Camera::new(self.eye, self.look_at, self.up, self.fov_y_deg, width, height)
+    }
+
+    /// Ray through image-plane position (x, y) in pixels (continuous; (0,0) is the
+    /// top-left corner of the top-left pixel). Direction is unit length.
+    #[inline]
+    pub fn generate_ray(&self, x: f32, y: f32) -> Ray {
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = (2.0 * x / self.width as f32 - 1.0) * self.tan_half * aspect;
+        let sy = (1.0 - 2.0 * y / self.height as f32) * self.tan_half;
+        let d = (self.forward + self.right * sx + self.up_img * sy).normalize();
+        Ray::new(self.eye, d)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn orientation_and_fov() {
+        let c = Camera::new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 90.0, 200, 100).unwrap();
+        let centre = c.generate_ray(100.0, 50.0);
+        assert!((centre.d - (-Vec3::Z)).length() < 1e-6);
+        // Top edge centre: 45 degrees up.
+        let top = c.generate_ray(100.0, 0.0);
+        assert!(top.d.y > 0.0 && (top.d.y - top.d.z.abs()).abs() < 1e-5);
+        // Left edge: -x, aspect 2 -> tan = 2.
+        let left = c.generate_ray(0.0, 50.0);
+        assert!(left.d.x < 0.0 && (left.d.x / left.d.z - 2.0).abs() < 1e-5);
+        assert!(Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Y, 0.0, 1, 1).is_err());
+        assert!(Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Y, 40.0, 0, 1).is_err());
+        assert!(Camera::new(Vec3::ZERO, Vec3::Y, Vec3::Y, 40.0, 1, 1).is_err());
+    }
+}

@@ -1,0 +1,152 @@
+//! The image: linear RGB radiance per pixel, written as OpenEXR (float32, for
+//! measurement) and PNG (sRGB transfer, clamped, for looking). Files are written to a
+//! temporary name and renamed, so a killed run never leaves a torn image behind.
+
+use crate::math::Color;
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+
+/// A width × height RGB image, row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Pixels.
+    pub pixels: Vec<Color>,
+}
+
+/// sRGB opto-electronic transfer function for a linear value in [0, 1].
+#[inline]
+pub fn srgb_encode(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x >= 1.0 {
+        1.0
+    } else if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 }
+}
+
+/// Temporary sibling path used for atomic writes.
+pub fn temp_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+    name.push(format!(".tmp{}", std::process::id()));
+    path.with_file_name(name)
+}
+
+/// Writes `bytes` atomically (temporary file + rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create directory", dir.display()))?;
+    }
+    let tmp = temp_path(path);
+    std::fs::write(&tmp, bytes).with_context(|| format!("{}: cannot write", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot rename into place", path.display()))?;
+    Ok(())
+}
+
+impl Film {
+    /// A black image.
+    pub fn new(width: u32, height: u32) -> Self {
+        Film { width, height, pixels: vec![Color::ZERO; width as usize * height as usize] }
+    }
+
+    /// Pixel at (x, y).
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> Color {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// Mean of all pixels.
+    pub fn mean(&self) -> Color {
+        let s: glam::DVec3 = self.pixels.iter().map(|c| c.as_dvec3()).sum();
+        (s / self.pixels.len().max(1) as f64).as_vec3()
+    }
+
+    /// 8-bit sRGB bytes (RGB, row-major).
+    pub fn to_srgb8(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.pixels.len() * 3);
+        for c in &self.pixels {
+            for v in c.to_array() {
+                let v = if v.is_nan() { 0.0 } else { v };
+                out.push((srgb_encode(v) * 255.0 + 0.5) as u8);
+            }
+        }
+        out
+    }
+
+    /// Writes a PNG (sRGB, clamped).
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        let mut buf = Vec::new();
+        let img = image::RgbImage::from_raw(self.width, self.height, self.to_srgb8()).context("image buffer size")?;
+        img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
+            .with_context(|| format!("{}: cannot encode PNG", path.display()))?;
+        write_atomic(path, &buf)
+    }
+
+    /// Writes an OpenEXR file (float32 linear RGB).
+    pub fn write_exr(&self, path: &Path) -> Result<()> {
+        use exr::prelude::*;
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create directory", dir.display()))?;
+        }
+        let w = self.width as usize;
+        let tmp = temp_path(path);
+        write_rgb_file(&tmp, w, self.height as usize, |x, y| {
+            let c = self.pixels[y * w + x];
+            (c.x, c.y, c.z)
+        })
+        .with_context(|| format!("{}: cannot write EXR", tmp.display()))?;
+        std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot rename into place", path.display()))?;
+        Ok(())
+    }
+
+    /// Reads an OpenEXR file's RGB channels.
+    pub fn read_exr(path: &Path) -> Result<Film> {
+        use exr::prelude::*;
+        let img = read_first_rgba_layer_from_file(
+            path,
+            |res, _| Film::new(res.width() as u32, res.height() as u32),
+            |f: &mut Film, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let i = pos.y() * f.width as usize + pos.x();
+                f.pixels[i] = Color::new(r, g, b);
+            },
+        )
+        .with_context(|| format!("{}: cannot read EXR", path.display()))?;
+        Ok(img.layer_data.channel_data.pixels)
+    }
+
+    /// Writes `stem.exr` and `stem.png` for an output path given with or without
+    /// an extension.
+    pub fn write_pair(&self, out: &Path) -> Result<(PathBuf, PathBuf)> {
+        let exr = out.with_extension("exr");
+        let png = out.with_extension("png");
+        self.write_exr(&exr)?;
+        self.write_png(&png)?;
+        Ok((exr, png))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_curve() {
+        assert_eq!(srgb_encode(0.0), 0.0);
+        assert!((srgb_encode(1.0) - 1.0).abs() < 1e-6);
+        assert!((srgb_encode(0.5) - 0.7354).abs() < 1e-3);
+        assert_eq!(srgb_encode(7.0), 1.0);
+    }
+
+    #[test]
+    fn exr_round_trip() {
+        let dir = std::env::temp_dir().join(format!("photonlab-film-{}", std::process::id()));
+        let mut f = Film::new(3, 2);
+        f.pixels[4] = Color::new(1.5, 0.25, 100.0);
+        let (exr, png) = f.write_pair(&dir.join("t.exr")).unwrap();
+        let g = Film::read_exr(&exr).unwrap();
+        assert_eq!(f, g);
+        assert!(png.exists());
+        std::fs::remove_dir_all(dir).ok();
+    }
+}

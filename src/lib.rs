@@ -1,0 +1,22 @@
+//! photonlab: a research testbed for physically based global illumination with
+//! photon mapping, with every strategy (sampler, accelerator, Russian roulette,
+//! integrator) a plug-in chosen by name. See ARCHITECTURE.md for the data flow.
+
+pub mod accel;
+pub mod bench;
+pub mod camera;
+pub mod cli;
+pub mod config;
+pub mod film;
+pub mod geometry;
+pub mod integrator;
+pub mod light;
+pub mod material;
+pub mod math;
+pub mod pipeline;
+pub mod registry;
+pub mod render;
+pub mod rr;
+pub mod sampler;
+pub mod scene;
+pub mod world;

@@ -1,0 +1,223 @@
+//! Surface materials (the scene contract's five types) and their BSDFs.
+//!
+//! Materials are a closed set fixed by the scene contract, so they are an enum with
+//! static dispatch rather than a plug-in trait. Every BSDF works in world space on a
+//! [`ShadingPoint`]: directions `wo` (towards the viewer / where light goes) and `wi`
+//! (towards the light / where light comes from) both point away from the surface.
+//! The geometric normal decides sidedness; the shading normal (interpolated `vn`)
+//! decides the lobe shape, as in pbrt.
+
+mod dielectric;
+mod glossy;
+mod lambertian;
+mod mirror;
+
+pub use dielectric::Dielectric;
+pub use glossy::Glossy;
+pub use lambertian::Lambertian;
+pub use mirror::Mirror;
+
+use crate::math::{Color, Frame};
+use glam::Vec3;
+
+/// Whether the carried quantity is radiance (camera paths) or flux/importance
+/// (photons). Only refraction differs: radiance is scaled by (η_o/η_i)² there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransportMode {
+    /// Paths traced from the camera.
+    Radiance,
+    /// Paths traced from the lights (photons).
+    Importance,
+}
+
+/// Local geometry for BSDF evaluation.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadingPoint {
+    /// Frame around the shading normal; the normal is on the same side as `ng`.
+    pub frame: Frame,
+    /// Geometric (winding) normal, unit length: its side is the triangle's front.
+    pub ng: Vec3,
+}
+
+impl ShadingPoint {
+    /// Builds a shading point; `ns` is flipped onto `ng`'s side (vertex normals never
+    /// change which side is the front).
+    pub fn new(ng: Vec3, ns: Vec3) -> Self {
+        let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
+        ShadingPoint { frame: Frame::new(ns), ng }
+    }
+    /// Shading normal.
+    #[inline]
+    pub fn ns(&self) -> Vec3 {
+        self.frame.n
+    }
+}
+
+/// One sampled scattering direction.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    /// Sampled incident direction (unit, away from the surface).
+    pub wi: Vec3,
+    /// BSDF value f(wo, wi) (for delta lobes: the weight times pdf / cos, unused).
+    pub f: Color,
+    /// Solid-angle pdf of `wi` (for delta lobes: the discrete lobe probability).
+    pub pdf: f32,
+    /// f·|cos θi| / pdf: the throughput multiplier.
+    pub weight: Color,
+    /// True when `wi` came from a delta (specular) lobe.
+    pub delta: bool,
+}
+
+/// The scattering part of a material.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Bsdf {
+    /// Lambertian diffuse.
+    Lambertian(Lambertian),
+    /// Perfect mirror.
+    Mirror(Mirror),
+    /// Smooth dielectric.
+    Dielectric(Dielectric),
+    /// Modified Phong + Lambertian.
+    Glossy(Glossy),
+}
+
+/// A surface material: a BSDF plus optional front-side emission.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Name (from the MTL or the override), for messages and export.
+    pub name: String,
+    /// Scattering.
+    pub bsdf: Bsdf,
+    /// Emitted radiance from the front side (zero for non-emitters).
+    pub emission: Color,
+}
+
+impl Material {
+    /// Lambertian material.
+    pub fn diffuse(name: &str, albedo: Color) -> Self {
+        Material { name: name.into(), bsdf: Bsdf::Lambertian(Lambertian { albedo }), emission: Color::ZERO }
+    }
+    /// True when the material emits.
+    pub fn is_emitter(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// Geometric side test for reflection: both directions on the same side of `ng`.
+#[inline]
+pub(crate) fn same_side(sp: &ShadingPoint, wo: Vec3, wi: Vec3) -> bool {
+    wo.dot(sp.ng) * wi.dot(sp.ng) > 0.0
+}
+
+/// Local directions for a two-sided reflective lobe: flips both so that wo is on the
+/// +z side of the shading frame.
+#[inline]
+pub(crate) fn local_pair(sp: &ShadingPoint, wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
+    let mut lo = sp.frame.to_local(wo);
+    let mut li = sp.frame.to_local(wi);
+    if lo.z < 0.0 {
+        lo.z = -lo.z;
+        li.z = -li.z;
+    }
+    (lo, li)
+}
+
+impl Bsdf {
+    /// f(wo, wi); zero for delta lobes.
+    #[inline]
+    pub fn eval(&self, sp: &ShadingPoint, wo: Vec3, wi: Vec3) -> Color {
+        match self {
+            Bsdf::Lambertian(m) => m.eval(sp, wo, wi),
+            Bsdf::Glossy(m) => m.eval(sp, wo, wi),
+            Bsdf::Mirror(_) | Bsdf::Dielectric(_) => Color::ZERO,
+        }
+    }
+
+    /// Solid-angle pdf with which [`Bsdf::sample`] would produce `wi`; zero for delta lobes.
+    #[inline]
+    pub fn pdf(&self, sp: &ShadingPoint, wo: Vec3, wi: Vec3) -> f32 {
+        match self {
+            Bsdf::Lambertian(m) => m.pdf(sp, wo, wi),
+            Bsdf::Glossy(m) => m.pdf(sp, wo, wi),
+            Bsdf::Mirror(_) | Bsdf::Dielectric(_) => 0.0,
+        }
+    }
+
+    /// Samples wi given wo. `u_lobe` chooses among lobes, `u` the direction within one.
+    #[inline]
+    pub fn sample(&self, sp: &ShadingPoint, wo: Vec3, u_lobe: f32, u: [f32; 2], mode: TransportMode) -> Option<BsdfSample> {
+        match self {
+            Bsdf::Lambertian(m) => m.sample(sp, wo, u),
+            Bsdf::Glossy(m) => m.sample(sp, wo, u_lobe, u),
+            Bsdf::Mirror(m) => m.sample(sp, wo),
+            Bsdf::Dielectric(m) => m.sample(sp, wo, u_lobe, mode),
+        }
+    }
+
+    /// True when every lobe is a delta (no light sampling possible).
+    #[inline]
+    pub fn is_delta(&self) -> bool {
+        matches!(self, Bsdf::Mirror(_) | Bsdf::Dielectric(_))
+    }
+
+    /// Hemispherical reflectance estimate used by the `albedo` Russian-roulette
+    /// policy (Jensen's photon survival probability).
+    pub fn albedo(&self) -> Color {
+        match self {
+            Bsdf::Lambertian(m) => m.albedo,
+            Bsdf::Glossy(m) => m.kd + m.ks,
+            Bsdf::Mirror(m) => m.reflectance,
+            Bsdf::Dielectric(m) => m.tint.max(Color::splat(dielectric::fresnel(1.0, m.ior))),
+        }
+    }
+
+    /// Diffuse part's albedo (what a photon map can represent): Kd for Lambertian
+    /// and glossy, zero for specular materials.
+    pub fn diffuse_albedo(&self) -> Color {
+        match self {
+            Bsdf::Lambertian(m) => m.albedo,
+            Bsdf::Glossy(m) => m.kd,
+            _ => Color::ZERO,
+        }
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::math::uniform_sphere;
+
+    /// Directional albedo ∫ f |cos| dωi estimated by stratified sphere sampling.
+    pub fn directional_albedo(b: &Bsdf, sp: &ShadingPoint, wo: Vec3, n: usize) -> Color {
+        let mut sum = Color::ZERO;
+        for i in 0..n {
+            for j in 0..n {
+                let u = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
+                let wi = uniform_sphere(u);
+                sum += b.eval(sp, wo, wi) * wi.dot(sp.ns()).abs() * (4.0 * std::f32::consts::PI);
+            }
+        }
+        sum / (n * n) as f32
+    }
+
+    /// Mean of the sampling weight over many samples: must equal the directional albedo.
+    pub fn sampled_albedo(b: &Bsdf, sp: &ShadingPoint, wo: Vec3, n: usize) -> Color {
+        let mut sum = Color::ZERO;
+        for i in 0..n {
+            for j in 0..n {
+                let u = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
+                let ul = ((i * 7919 + j * 104729) % (n * n)) as f32 / (n * n) as f32;
+                if let Some(s) = b.sample(sp, wo, ul, u, TransportMode::Radiance) {
+                    sum += s.weight;
+                }
+            }
+        }
+        sum / (n * n) as f32
+    }
+
+    #[test]
+    fn shading_normal_flipped_to_geometric_side() {
+        let sp = ShadingPoint::new(Vec3::Z, -Vec3::Z);
+        assert!(sp.ns().dot(Vec3::Z) > 0.0);
+    }
+}

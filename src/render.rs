@@ -1,0 +1,102 @@
+//! The render pass: image tiles in parallel (rayon); each pixel's samples depend only
+//! on (seed, pixel, sample index), so the image is bit-identical for any thread count.
+
+use crate::accel::TraversalStats;
+use crate::film::Film;
+use crate::integrator::Integrator;
+use crate::math::{Color, is_finite};
+use crate::sampler::{DIM_PIXEL, Sampler};
+use crate::world::World;
+use glam::DVec3;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Tile edge in pixels.
+pub const TILE: u32 = 16;
+
+/// Counters of a render pass.
+#[derive(Clone, Debug, Default)]
+pub struct RenderStats {
+    /// Traversal counters summed over threads.
+    pub traversal: TraversalStats,
+    /// Samples whose radiance was NaN or infinite (dropped, counted).
+    pub nonfinite_samples: u64,
+    /// Wall time of the pass.
+    pub seconds: f64,
+}
+
+/// A progress bar on stderr, hidden when stderr is not a terminal or when `quiet`.
+pub fn progress_bar(len: u64, quiet: bool, what: &str) -> ProgressBar {
+    let pb = ProgressBar::with_draw_target(Some(len), if quiet { ProgressDrawTarget::hidden() } else { ProgressDrawTarget::stderr() });
+    pb.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}
+
+/// Renders `spp` samples per pixel with the integrator. `sampler` is a prototype,
+/// cloned once per tile.
+pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler, spp: u32, quiet: bool) -> (Film, RenderStats) {
+    let cam = &world.scene.camera;
+    let (w, h) = (cam.width, cam.height);
+    let tiles_x = w.div_ceil(TILE);
+    let tiles_y = h.div_ceil(TILE);
+    let start = Instant::now();
+    let pb = progress_bar((tiles_x * tiles_y) as u64, quiet, "render");
+    let results: Vec<(Vec<Color>, TraversalStats, u64)> = (0..tiles_x * tiles_y)
+        .into_par_iter()
+        .map(|t| {
+            let (tx, ty) = (t % tiles_x, t / tiles_x);
+            let (x0, y0) = (tx * TILE, ty * TILE);
+            let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
+            let mut s = sampler.clone_box();
+            let mut stats = TraversalStats::default();
+            let mut bad = 0u64;
+            let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let stream = y as u64 * w as u64 + x as u64;
+                    let mut sum = DVec3::ZERO;
+                    for i in 0..spp {
+                        s.start(stream, i as u64);
+                        s.set_dimension(DIM_PIXEL);
+                        let u = s.next_2d();
+                        let ray = cam.generate_ray(x as f32 + u[0], y as f32 + u[1]);
+                        let l = integrator.li(world, &ray, s.as_mut(), &mut stats);
+                        if is_finite(l) {
+                            sum += l.as_dvec3();
+                        } else {
+                            bad += 1;
+                        }
+                    }
+                    out.push((sum / spp as f64).as_vec3());
+                }
+            }
+            pb.inc(1);
+            (out, stats, bad)
+        })
+        .collect();
+    pb.finish_and_clear();
+    let mut film = Film::new(w, h);
+    let mut stats = RenderStats::default();
+    for (t, (pixels, st, bad)) in results.into_iter().enumerate() {
+        let t = t as u32;
+        let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
+        let x1 = (x0 + TILE).min(w);
+        let mut k = 0;
+        for y in y0..(y0 + TILE).min(h) {
+            for x in x0..x1 {
+                film.pixels[(y * w + x) as usize] = pixels[k];
+                k += 1;
+            }
+        }
+        stats.traversal.add(&st);
+        stats.nonfinite_samples += bad;
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    (film, stats)
+}

@@ -1,0 +1,75 @@
+//! Russian-roulette policies (plug-ins chosen by name: `off`, `fixed`, `albedo`,
+//! `throughput`), shared by the path tracer and the photon tracer.
+//!
+//! A policy only says how likely a path is to survive a bounce; the caller draws the
+//! uniform number from its sampler and divides survivors by the probability, which
+//! keeps every estimator unbiased.
+
+pub mod albedo;
+pub mod fixed;
+pub mod off;
+pub mod throughput;
+
+use crate::math::Color;
+
+/// What a policy may look at when deciding.
+#[derive(Clone, Copy, Debug)]
+pub struct RrContext {
+    /// Number of scattering events so far (1 after the first surface interaction).
+    pub depth: u32,
+    /// Path throughput (camera paths) or photon power relative to its emitted power.
+    pub throughput: Color,
+    /// Reflectance of the surface just scattered from.
+    pub albedo: Color,
+}
+
+/// A Russian-roulette policy.
+pub trait RussianRoulette: Send + Sync {
+    /// Configuration name.
+    fn name(&self) -> &'static str;
+    /// Survival probability in (0, 1]; 1 means "always continue".
+    fn survival_probability(&self, ctx: &RrContext) -> f32;
+    /// True for policies that never terminate paths (so a finite max depth is needed).
+    fn never_terminates(&self) -> bool {
+        false
+    }
+}
+
+/// Applies a policy: returns the weight a survivor is multiplied by (1/q), or `None`
+/// when the path is terminated. `u` is a uniform number in [0,1).
+#[inline]
+pub fn roulette(policy: &dyn RussianRoulette, ctx: &RrContext, u: f32) -> Option<f32> {
+    let q = policy.survival_probability(ctx);
+    if q >= 1.0 {
+        return Some(1.0);
+    }
+    if q <= 0.0 || u >= q { None } else { Some(1.0 / q) }
+}
+
+/// Clamps a probability into [0, 1], mapping NaN to 0.
+#[inline]
+pub(crate) fn clamp01(q: f32) -> f32 {
+    if q.is_nan() { 0.0 } else { q.clamp(0.0, 1.0) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roulette_weights_survivors() {
+        let p = fixed::Fixed::new(0.25).unwrap();
+        let ctx = RrContext { depth: 1, throughput: Color::ONE, albedo: Color::ONE };
+        assert_eq!(roulette(&p, &ctx, 0.1), Some(4.0));
+        assert_eq!(roulette(&p, &ctx, 0.3), None);
+        let off = off::Off;
+        assert_eq!(roulette(&off, &ctx, 0.999), Some(1.0));
+        assert!(off.never_terminates());
+        // Expected weight is exactly 1 over a uniform grid of u.
+        let mut s = 0.0;
+        for i in 0..1000 {
+            s += roulette(&p, &ctx, (i as f32 + 0.5) / 1000.0).unwrap_or(0.0);
+        }
+        assert!((s / 1000.0 - 1.0).abs() < 1e-6);
+    }
+}

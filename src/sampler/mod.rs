@@ -1,0 +1,182 @@
+//! Sample generators (plug-ins chosen by name: `random`, `halton`, `hammersley`).
+//!
+//! Every value is a pure function of (seed, stream, sample index, dimension): a
+//! *stream* is a pixel (y·width + x) for the render pass or a light-path id for the
+//! photon pass, so images do not depend on thread count or scheduling.
+//!
+//! Dimension bookkeeping is explicit: integrators call [`Sampler::set_dimension`] with
+//! the layout below at the start of every bounce, so that (for example) the light
+//! sample of bounce k always uses the same dimensions whatever happened earlier.
+
+pub mod halton;
+pub mod hammersley;
+pub mod random;
+
+use crate::math::mix64;
+
+/// Dimensions 0–1: position inside the pixel (box filter).
+pub const DIM_PIXEL: u32 = 0;
+/// First dimension of bounce 0.
+pub const DIM_FIRST_BOUNCE: u32 = 2;
+/// Dimensions reserved per bounce (see the `BOUNCE_*` offsets).
+pub const DIMS_PER_BOUNCE: u32 = 8;
+/// Offset: which light to sample.
+pub const BOUNCE_LIGHT_SELECT: u32 = 0;
+/// Offset: point on the light (2 dims).
+pub const BOUNCE_LIGHT_POINT: u32 = 1;
+/// Offset: BSDF lobe choice.
+pub const BOUNCE_BSDF_LOBE: u32 = 3;
+/// Offset: BSDF direction (2 dims).
+pub const BOUNCE_BSDF_DIR: u32 = 4;
+/// Offset: Russian-roulette decision.
+pub const BOUNCE_RR: u32 = 6;
+const _: () = assert!(BOUNCE_RR < DIMS_PER_BOUNCE);
+
+/// First dimension used by bounce `depth` (0 = the camera ray's first hit).
+#[inline]
+pub fn bounce_dim(depth: u32) -> u32 {
+    DIM_FIRST_BOUNCE.saturating_add(depth.saturating_mul(DIMS_PER_BOUNCE))
+}
+
+/// A sample generator. Implementations are cheap to clone (tables are shared).
+pub trait Sampler: Send + Sync {
+    /// Configuration name.
+    fn name(&self) -> &'static str;
+    /// Starts sample `index` of `stream`; the dimension resets to 0.
+    fn start(&mut self, stream: u64, index: u64);
+    /// Jumps to dimension `dim` of the current sample.
+    fn set_dimension(&mut self, dim: u32);
+    /// Current dimension.
+    fn dimension(&self) -> u32;
+    /// Next value in [0, 1); advances the dimension by one.
+    fn next_1d(&mut self) -> f32;
+    /// Next pair of values; advances the dimension by two.
+    #[inline]
+    fn next_2d(&mut self) -> [f32; 2] {
+        let a = self.next_1d();
+        let b = self.next_1d();
+        [a, b]
+    }
+    /// A boxed copy (for per-thread use).
+    fn clone_box(&self) -> Box<dyn Sampler>;
+}
+
+/// Per-(seed, stream, dimension) uniform shift in [0,1) for Cranley–Patterson rotation.
+#[inline]
+pub(crate) fn cp_shift(seed: u64, stream: u64, dim: u32) -> f64 {
+    let h = mix64(
+        mix64(seed ^ 0xA076_1D64_78BD_642F)
+            ^ mix64(stream.wrapping_add(0xE703_7ED1_A0B4_28DB))
+            ^ (dim as u64).wrapping_mul(0x8EBC_6AF0_9C88_C6E3),
+    );
+    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// Adds a rotation modulo 1 and rounds into [0, 1).
+#[inline]
+pub(crate) fn rotate(x: f64, shift: f64) -> f32 {
+    let mut v = x + shift;
+    if v >= 1.0 {
+        v -= 1.0;
+    }
+    (v as f32).min(crate::math::ONE_MINUS_EPSILON)
+}
+
+/// First primes, one base per low-discrepancy dimension.
+pub const PRIMES: [u32; 64] = [
+    2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53, 59, 61, 67, 71, 73, 79, 83, 89, 97, 101, 103, 107, 109, 113, 127, 131, 137,
+    139, 149, 151, 157, 163, 167, 173, 179, 181, 191, 193, 197, 199, 211, 223, 227, 229, 233, 239, 241, 251, 257, 263, 269, 271, 277, 281,
+    283, 293, 307, 311,
+];
+
+/// Radical inverse of `index` in `base` (van der Corput), exact in f64.
+#[inline]
+pub fn radical_inverse(base: u32, mut index: u64) -> f64 {
+    if base == 2 {
+        return (index.reverse_bits() >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+    }
+    let b = base as u64;
+    let inv = 1.0 / base as f64;
+    let mut rev: u64 = 0;
+    let mut inv_n = 1.0f64;
+    while index > 0 {
+        let next = index / b;
+        let digit = index - next * b;
+        rev = rev * b + digit;
+        inv_n *= inv;
+        index = next;
+    }
+    (rev as f64 * inv_n).min(1.0 - f64::EPSILON)
+}
+
+/// Radical inverse with a digit permutation `perm` (of 0..base) applied to every digit,
+/// including the infinite tail of leading zeros (as pbrt does).
+#[inline]
+pub fn scrambled_radical_inverse(base: u32, perm: &[u16], mut index: u64) -> f64 {
+    let b = base as u64;
+    let inv = 1.0 / base as f64;
+    let mut rev: u64 = 0;
+    let mut inv_n = 1.0f64;
+    // Enough digits for the f64 mantissa.
+    let digits = (53.0 / (base as f64).log2()).ceil() as u32;
+    for _ in 0..digits {
+        let next = index / b;
+        let digit = index - next * b;
+        rev = rev * b + perm[digit as usize] as u64;
+        inv_n *= inv;
+        index = next;
+        if rev > (1u64 << 52) {
+            break;
+        }
+    }
+    (rev as f64 * inv_n).min(1.0 - f64::EPSILON)
+}
+
+/// Random digit permutations for the first `dims` prime bases, from `seed`.
+pub(crate) fn digit_permutations(seed: u64, dims: usize) -> Vec<Vec<u16>> {
+    (0..dims)
+        .map(|d| {
+            let base = PRIMES[d] as usize;
+            let mut p: Vec<u16> = (0..base as u16).collect();
+            let mut s = mix64(seed ^ (d as u64).wrapping_mul(0x9E37_79B9));
+            for i in (1..base).rev() {
+                s = mix64(s);
+                let j = (s % (i as u64 + 1)) as usize;
+                p.swap(i, j);
+            }
+            p
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn radical_inverse_known_values() {
+        let b2: Vec<f64> = (0..5).map(|i| radical_inverse(2, i)).collect();
+        assert_eq!(b2, vec![0.0, 0.5, 0.25, 0.75, 0.125]);
+        let b3: Vec<f64> = (0..5).map(|i| radical_inverse(3, i)).collect();
+        let want = [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0 / 9.0, 4.0 / 9.0];
+        for (a, b) in b3.iter().zip(want) {
+            assert!((a - b).abs() < 1e-12);
+        }
+        assert!((radical_inverse(5, 7) - (2.0 / 5.0 + 1.0 / 25.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn identity_permutation_matches_plain() {
+        let id: Vec<u16> = (0..3).collect();
+        for i in 0..100 {
+            assert!((scrambled_radical_inverse(3, &id, i) - radical_inverse(3, i)).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn bounce_dims_do_not_overlap() {
+        assert_eq!(bounce_dim(0), 2);
+        assert_eq!(bounce_dim(1), 2 + DIMS_PER_BOUNCE);
+        assert_eq!(bounce_dim(u32::MAX), u32::MAX);
+    }
+}

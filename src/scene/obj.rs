@@ -1,0 +1,1 @@
+//! Wavefront OBJ/MTL reading (placeholder until the loader lands).
