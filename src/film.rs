@@ -23,7 +23,11 @@ pub fn srgb_encode(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0);
     if x >= 1.0 {
         1.0
-    } else if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 }
+    } else if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 /// Temporary sibling path used for atomic writes.

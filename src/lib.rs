@@ -14,6 +14,7 @@ pub mod light;
 pub mod material;
 pub mod math;
 pub mod pipeline;
+pub mod plot;
 pub mod registry;
 pub mod render;
 pub mod rr;

@@ -1,0 +1,273 @@
+//! Plots for the experiment runner and the statistics suite, written with plotters as
+//! PNG and SVG side by side. Text uses the DejaVu Sans font bundled in `assets/`
+//! (registered once), so plots look the same on every machine.
+
+use anyhow::{Context, Result, anyhow};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+static FONT: Once = Once::new();
+
+fn ensure_font() {
+    FONT.call_once(|| {
+        // The bytes are a valid TrueType font shipped with the crate.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, include_bytes!("../assets/DejaVuSans.ttf"));
+    });
+}
+
+/// One named line of points.
+#[derive(Clone, Debug)]
+pub struct Series {
+    /// Legend label.
+    pub name: String,
+    /// (x, y) points, drawn in the given order.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A line chart.
+#[derive(Clone, Debug)]
+pub struct LinePlot {
+    /// Title.
+    pub title: String,
+    /// X-axis label (with unit).
+    pub x_label: String,
+    /// Y-axis label (with unit).
+    pub y_label: String,
+    /// Logarithmic x axis.
+    pub log_x: bool,
+    /// Logarithmic y axis.
+    pub log_y: bool,
+    /// Lines.
+    pub series: Vec<Series>,
+}
+
+/// Stacked bars: one bar per category, one layer per stack entry.
+#[derive(Clone, Debug)]
+pub struct StackedBars {
+    /// Title.
+    pub title: String,
+    /// Y-axis label (with unit).
+    pub y_label: String,
+    /// Bar labels.
+    pub categories: Vec<String>,
+    /// (layer name, value per category).
+    pub layers: Vec<(String, Vec<f64>)>,
+}
+
+fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in vals.filter(|v| v.is_finite() && (!log || *v > 0.0)) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return if log { (0.1, 10.0) } else { (0.0, 1.0) };
+    }
+    if log {
+        if hi <= lo {
+            (lo / 2.0, hi * 2.0)
+        } else {
+            let f = (hi / lo).powf(0.05);
+            (lo / f, hi * f)
+        }
+    } else if hi <= lo {
+        (lo - 1.0, hi + 1.0)
+    } else {
+        let pad = 0.05 * (hi - lo);
+        (lo - pad, hi + pad)
+    }
+}
+
+fn draw_lines<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, p: &LinePlot) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| anyhow!("{e:?}"))?;
+    let (x0, x1) = range(p.series.iter().flat_map(|s| s.points.iter().map(|q| q.0)), p.log_x);
+    let (y0, y1) = range(p.series.iter().flat_map(|s| s.points.iter().map(|q| q.1)), p.log_y);
+    let mut b = ChartBuilder::on(&root);
+    b.caption(&p.title, ("sans-serif", 22)).margin(12).x_label_area_size(45).y_label_area_size(70);
+    macro_rules! body {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart
+                .configure_mesh()
+                .x_desc(p.x_label.as_str())
+                .y_desc(p.y_label.as_str())
+                .label_style(("sans-serif", 14))
+                .draw()
+                .map_err(|e| anyhow!("{e:?}"))?;
+            for (i, s) in p.series.iter().enumerate() {
+                let color = Palette99::pick(i).to_rgba();
+                let pts: Vec<(f64, f64)> = s
+                    .points
+                    .iter()
+                    .copied()
+                    .filter(|&(x, y)| x.is_finite() && y.is_finite() && (!p.log_x || x > 0.0) && (!p.log_y || y > 0.0))
+                    .collect();
+                chart
+                    .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                    .map_err(|e| anyhow!("{e:?}"))?
+                    .label(s.name.as_str())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+                chart.draw_series(pts.into_iter().map(|q| Circle::new(q, 3, color.filled()))).map_err(|e| anyhow!("{e:?}"))?;
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 13))
+                .position(SeriesLabelPosition::UpperRight)
+                .draw()
+                .map_err(|e| anyhow!("{e:?}"))?;
+        }};
+    }
+    match (p.log_x, p.log_y) {
+        (true, true) => body!(b.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale()).map_err(|e| anyhow!("{e:?}"))?),
+        (true, false) => body!(b.build_cartesian_2d((x0..x1).log_scale(), y0..y1).map_err(|e| anyhow!("{e:?}"))?),
+        (false, true) => body!(b.build_cartesian_2d(x0..x1, (y0..y1).log_scale()).map_err(|e| anyhow!("{e:?}"))?),
+        (false, false) => body!(b.build_cartesian_2d(x0..x1, y0..y1).map_err(|e| anyhow!("{e:?}"))?),
+    }
+    root.present().map_err(|e| anyhow!("{e:?}"))?;
+    Ok(())
+}
+
+fn draw_bars<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, p: &StackedBars) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| anyhow!("{e:?}"))?;
+    let n = p.categories.len().max(1);
+    let ymax = (0..n).map(|i| p.layers.iter().map(|l| l.1.get(i).copied().unwrap_or(0.0).max(0.0)).sum::<f64>()).fold(0.0f64, f64::max);
+    let ymax = if ymax > 0.0 && ymax.is_finite() { ymax * 1.1 } else { 1.0 };
+    let cats = p.categories.clone();
+    let mut chart = ChartBuilder::on(&root)
+        .caption(&p.title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(60)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0f64..n as f64, 0f64..ymax)
+        .map_err(|e| anyhow!("{e:?}"))?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(n + 1)
+        .x_label_formatter(&|x| {
+            let i = x.floor() as usize;
+            if (x - x.floor() - 0.5).abs() < 1e-9 { cats.get(i).cloned().unwrap_or_default() } else { String::new() }
+        })
+        .y_desc(p.y_label.as_str())
+        .label_style(("sans-serif", 13))
+        .draw()
+        .map_err(|e| anyhow!("{e:?}"))?;
+    let mut base = vec![0.0f64; n];
+    for (li, (name, vals)) in p.layers.iter().enumerate() {
+        let color = Palette99::pick(li).to_rgba();
+        let rects: Vec<Rectangle<(f64, f64)>> = (0..n)
+            .map(|i| {
+                let v = vals.get(i).copied().unwrap_or(0.0).max(0.0);
+                let r = Rectangle::new([(i as f64 + 0.15, base[i]), (i as f64 + 0.85, base[i] + v)], color.filled());
+                base[i] += v;
+                r
+            })
+            .collect();
+        chart
+            .draw_series(rects)
+            .map_err(|e| anyhow!("{e:?}"))?
+            .label(name.as_str())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 13))
+        .draw()
+        .map_err(|e| anyhow!("{e:?}"))?;
+    root.present().map_err(|e| anyhow!("{e:?}"))?;
+    Ok(())
+}
+
+fn both(stem: &Path, png: impl FnOnce(&Path) -> Result<()>, svg: impl FnOnce(&Path) -> Result<()>) -> Result<(PathBuf, PathBuf)> {
+    ensure_font();
+    if let Some(d) = stem.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create directory", d.display()))?;
+    }
+    let (p, s) = (stem.with_extension("png"), stem.with_extension("svg"));
+    let (tp, ts) = (crate::film::temp_path(&p).with_extension("png"), crate::film::temp_path(&s).with_extension("svg"));
+    png(&tp).with_context(|| format!("{}: cannot draw plot", p.display()))?;
+    svg(&ts).with_context(|| format!("{}: cannot draw plot", s.display()))?;
+    std::fs::rename(&tp, &p).with_context(|| format!("{}: cannot rename into place", p.display()))?;
+    std::fs::rename(&ts, &s).with_context(|| format!("{}: cannot rename into place", s.display()))?;
+    Ok((p, s))
+}
+
+/// Writes `stem.png` and `stem.svg` with a line chart.
+pub fn line_plot(stem: &Path, plot: &LinePlot) -> Result<(PathBuf, PathBuf)> {
+    both(
+        stem,
+        |p| draw_lines(BitMapBackend::new(p, (900, 600)).into_drawing_area(), plot),
+        |p| draw_lines(SVGBackend::new(p, (900, 600)).into_drawing_area(), plot),
+    )
+}
+
+/// Writes `stem.png` and `stem.svg` with stacked bars.
+pub fn bar_plot(stem: &Path, plot: &StackedBars) -> Result<(PathBuf, PathBuf)> {
+    both(
+        stem,
+        |p| draw_bars(BitMapBackend::new(p, (900, 600)).into_drawing_area(), plot),
+        |p| draw_bars(SVGBackend::new(p, (900, 600)).into_drawing_area(), plot),
+    )
+}
+
+/// Least-squares slope of log(y) against log(x) over the points with x, y > 0.
+pub fn log_log_slope(points: &[(f64, f64)]) -> Option<f64> {
+    let pts: Vec<(f64, f64)> = points.iter().filter(|p| p.0 > 0.0 && p.1 > 0.0).map(|p| (p.0.ln(), p.1.ln())).collect();
+    if pts.len() < 2 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    if sxx <= 0.0 { None } else { Some(sxy / sxx) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slope_of_power_law() {
+        let pts: Vec<(f64, f64)> = (1..10).map(|i| (i as f64, 3.0 * (i as f64).powf(-1.5))).collect();
+        assert!((log_log_slope(&pts).unwrap() + 1.5).abs() < 1e-9);
+        assert!(log_log_slope(&[(1.0, 1.0)]).is_none());
+    }
+
+    #[test]
+    fn writes_png_and_svg() {
+        let dir = std::env::temp_dir().join(format!("photonlab-plot-{}", std::process::id()));
+        let plot = LinePlot {
+            title: "t".into(),
+            x_label: "x (s)".into(),
+            y_label: "y".into(),
+            log_x: true,
+            log_y: true,
+            series: vec![Series { name: "a".into(), points: vec![(1.0, 1.0), (10.0, 0.1)] }],
+        };
+        let (p, s) = line_plot(&dir.join("lines"), &plot).unwrap();
+        assert!(std::fs::metadata(&p).unwrap().len() > 1000);
+        assert!(std::fs::read_to_string(&s).unwrap().contains("<svg"));
+        let bars = StackedBars {
+            title: "b".into(),
+            y_label: "MSE".into(),
+            categories: vec!["x".into(), "y".into()],
+            layers: vec![("bias²".into(), vec![1.0, 2.0]), ("variance".into(), vec![0.5, 0.1])],
+        };
+        bar_plot(&dir.join("bars"), &bars).unwrap();
+        std::fs::remove_dir_all(dir).ok();
+    }
+}
