@@ -66,6 +66,21 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// Continuous image position (pixels) of a world point in front of the camera.
+    pub fn project(&self, p: Vec3) -> Option<(f32, f32)> {
+        let d = p - self.eye;
+        let z = d.dot(self.forward);
+        if z <= 0.0 {
+            return None;
+        }
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = d.dot(self.right) / z / (self.tan_half * aspect);
+        let sy = d.dot(self.up_img) / z / self.tan_half;
+        Some(((sx + 1.0) * 0.5 * self.width as f32, (1.0 - sy) * 0.5 * self.height as f32))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -81,6 +96,8 @@ mod tests {
         // Left edge: -x, aspect 2 -> tan = 2.
         let left = c.generate_ray(0.0, 50.0);
         assert!(left.d.x < 0.0 && (left.d.x / left.d.z - 2.0).abs() < 1e-5);
+        let (px, py) = c.project(c.generate_ray(31.5, 72.25).at(3.0)).unwrap();
+        assert!((px - 31.5).abs() < 1e-3 && (py - 72.25).abs() < 1e-3);
         assert!(Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Y, 0.0, 1, 1).is_err());
         assert!(Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Y, 40.0, 0, 1).is_err());
         assert!(Camera::new(Vec3::ZERO, Vec3::Y, Vec3::Y, 40.0, 1, 1).is_err());

@@ -1,7 +1,7 @@
 //! Command-line front end: `render`, `scene export`, `bench`.
 
 use crate::config::{RenderConfig, parse_resolution};
-use crate::pipeline::render_scene;
+use crate::pipeline::render_scene_with_aovs;
 use crate::scene::{Scene, builtin::builtin, export::export_scene, loader::load_scene};
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -20,10 +20,20 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Render a scene file or a built-in scene to OUT.exr and OUT.png.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Scene utilities.
     #[command(subcommand)]
     Scene(SceneCommand),
+    /// Compare two EXR images: mean per channel, RMSE, relative MSE.
+    Diff {
+        /// Image under test.
+        test: PathBuf,
+        /// Reference image.
+        reference: PathBuf,
+        /// Write the signed difference (test − reference), scaled ×4 around grey, to this PNG.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Benchmarks (release builds).
     #[command(subcommand)]
     Bench(crate::bench::BenchCommand),
@@ -77,6 +87,70 @@ pub struct RenderArgs {
     /// Image size WIDTHxHEIGHT (overrides the scene camera's).
     #[arg(long)]
     pub resolution: Option<String>,
+    /// Photon integrator: photons stored in the direct + indirect maps.
+    #[arg(long)]
+    pub photons: Option<u32>,
+    /// Photon integrator: photons stored in the caustic map.
+    #[arg(long)]
+    pub caustic_photons: Option<u32>,
+    /// Photon integrator: emit exactly N photon paths (needed by hammersley).
+    #[arg(long)]
+    pub emit_photons: Option<u64>,
+    /// Photon integrator: cap on emitted photon paths.
+    #[arg(long)]
+    pub max_emitted: Option<u64>,
+    /// Photon integrator: direct | final_gather | precomputed | irradiance_cache.
+    #[arg(long)]
+    pub gather: Option<String>,
+    /// Photon integrator: final-gather rays per point.
+    #[arg(long)]
+    pub gather_samples: Option<u32>,
+    /// Photon integrator: final-gather levels.
+    #[arg(long)]
+    pub gather_bounces: Option<u32>,
+    /// Photon integrator: precomputed irradiance at gather hits (true/false).
+    #[arg(long)]
+    pub precomputed_irradiance: Option<bool>,
+    /// Photon integrator: precompute irradiance at every n-th photon.
+    #[arg(long)]
+    pub precompute_stride: Option<u32>,
+    /// Photon integrator: photons per global estimate.
+    #[arg(long)]
+    pub k: Option<u32>,
+    /// Photon integrator: photons per caustic estimate.
+    #[arg(long)]
+    pub caustic_k: Option<u32>,
+    /// Photon integrator: maximum global search radius (scene units).
+    #[arg(long)]
+    pub max_radius: Option<f32>,
+    /// Photon integrator: maximum caustic search radius (scene units).
+    #[arg(long)]
+    pub caustic_max_radius: Option<f32>,
+    /// Photon integrator: box | cone | gaussian.
+    #[arg(long)]
+    pub filter: Option<String>,
+    /// Photon integrator: disc half-thickness as a fraction of the maximum radius.
+    #[arg(long)]
+    pub disc: Option<f32>,
+    /// Photon integrator: shadow rays per shading point.
+    #[arg(long)]
+    pub direct_samples: Option<u32>,
+    /// Photon integrator: sampler for direct-light samples.
+    #[arg(long)]
+    pub direct_sampler: Option<String>,
+    /// Photon integrator: irradiance-cache tolerance a.
+    #[arg(long)]
+    pub ic_tolerance: Option<f32>,
+    /// Photon integrator: smallest cache radius (fraction of the scene radius).
+    #[arg(long)]
+    pub ic_min_radius: Option<f32>,
+    /// Photon integrator: largest cache radius (fraction of the scene radius).
+    #[arg(long)]
+    pub ic_max_radius: Option<f32>,
+    /// Extra images (photon integrator): direct, caustic, indirect, photons-direct,
+    /// photons-indirect, photons-caustic, cache. Repeat or comma-separate.
+    #[arg(long, value_delimiter = ',')]
+    pub aov: Vec<String>,
     /// Output path; .exr and .png are written next to each other.
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
@@ -111,6 +185,20 @@ impl RenderArgs {
         if let Some(v) = self.threads {
             c.threads = v;
         }
+        macro_rules! set {
+            ($($f:ident),*) => {$(if let Some(v) = &self.$f { c.$f = v.clone(); })*};
+        }
+        set!(photons, caustic_photons, max_emitted, gather, gather_samples, gather_bounces, precomputed_irradiance, precompute_stride, k);
+        set!(caustic_k, filter, disc, direct_samples, direct_sampler, ic_tolerance, ic_min_radius, ic_max_radius);
+        if self.emit_photons.is_some() {
+            c.emit_photons = self.emit_photons;
+        }
+        if self.max_radius.is_some() {
+            c.max_radius = self.max_radius;
+        }
+        if self.caustic_max_radius.is_some() {
+            c.caustic_max_radius = self.caustic_max_radius;
+        }
         if let Some(r) = &self.resolution {
             c.resolution = Some(parse_resolution(r).map_err(anyhow::Error::msg)?);
         }
@@ -138,6 +226,32 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Bench(b) => crate::bench::run(b),
+        Command::Diff { test, reference, out } => {
+            let a = crate::film::Film::read_exr(&test)?;
+            let b = crate::film::Film::read_exr(&reference)?;
+            if (a.width, a.height) != (b.width, b.height) {
+                anyhow::bail!("{}: size {}x{} differs from the reference's {}x{}", test.display(), a.width, a.height, b.width, b.height);
+            }
+            let (mut se, mut rel) = (0.0f64, 0.0f64);
+            for (p, q) in a.pixels.iter().zip(&b.pixels) {
+                for c in 0..3 {
+                    let d = (p[c] - q[c]) as f64;
+                    se += d * d;
+                    rel += d * d / ((q[c] as f64).powi(2) + 1e-2);
+                }
+            }
+            let n = (a.pixels.len() * 3) as f64;
+            println!("mean test {:?} reference {:?}", a.mean().to_array(), b.mean().to_array());
+            println!("rmse {:.6} relmse {:.6}", (se / n).sqrt(), rel / n);
+            if let Some(o) = out {
+                let mut d = a.clone();
+                for (p, q) in d.pixels.iter_mut().zip(&b.pixels) {
+                    *p = (*p - *q) * 4.0 + glam::Vec3::splat(0.2);
+                }
+                d.write_png(&o)?;
+            }
+            Ok(())
+        }
     }
 }
 
@@ -156,7 +270,7 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
     let out = a.output.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}.exr", scene.name)));
     let ntris = scene.triangles.len();
     let name = scene.name.clone();
-    let o = render_scene(scene, &cfg, a.quiet)?;
+    let o = render_scene_with_aovs(scene, &cfg, a.quiet, &a.aov)?;
     let (exr, png) = o.film.write_pair(&out).context("writing the image")?;
     let rays = o.rays();
     println!(
@@ -174,9 +288,23 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
         rays.shadow_rays,
         rays.total_rays() as f64 / o.timings.render_s.max(1e-9) / 1e6
     );
+    if !o.extra.is_empty() {
+        let parts: Vec<String> = o.extra.iter().map(|(k, v)| format!("{k} {}", fmt_num(*v))).collect();
+        println!("{}: {}", cfg.integrator, parts.join(", "));
+    }
+    for (name, img) in &o.aovs {
+        let stem = out.with_extension("");
+        let p = PathBuf::from(format!("{}.{name}.exr", stem.display()));
+        let (e, g) = img.write_pair(&p).with_context(|| format!("writing aov {name}"))?;
+        println!("wrote {} and {}", e.display(), g.display());
+    }
     if o.stats.nonfinite_samples > 0 {
         eprintln!("warning: {} sample(s) were NaN or infinite and were dropped", o.stats.nonfinite_samples);
     }
     println!("wrote {} and {}", exr.display(), png.display());
     Ok(())
+}
+
+fn fmt_num(v: f64) -> String {
+    if v.fract() == 0.0 && v.abs() < 1e15 { format!("{}", v as i64) } else { format!("{v:.3}") }
 }

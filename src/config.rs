@@ -26,6 +26,52 @@ pub struct RenderConfig {
     pub threads: usize,
     /// Override of the scene camera's resolution `[width, height]`.
     pub resolution: Option<[u32; 2]>,
+
+    // ---- photon integrator (ignored by `path`) ----
+    /// Photons stored in the direct + indirect (global) maps.
+    pub photons: u32,
+    /// Photons stored in the caustic map.
+    pub caustic_photons: u32,
+    /// Emit exactly this many photon paths (required by the `hammersley` sampler)
+    /// instead of emitting until the maps hold the requested counts.
+    pub emit_photons: Option<u64>,
+    /// Cap on emitted photon paths.
+    pub max_emitted: u64,
+    /// Indirect-light method: `direct`, `final_gather`, `precomputed`, `irradiance_cache`.
+    pub gather: String,
+    /// Final-gather rays at the first level.
+    pub gather_samples: u32,
+    /// Final-gather levels (≥ 1); each deeper level uses 1/8 of the rays of the one above.
+    pub gather_bounces: u32,
+    /// Let `irradiance_cache` gather over Christensen's precomputed irradiance
+    /// (`precomputed` always uses it, `final_gather` never does).
+    pub precomputed_irradiance: bool,
+    /// Precompute irradiance at every n-th global photon.
+    pub precompute_stride: u32,
+    /// Photons per global radiance estimate.
+    pub k: u32,
+    /// Photons per caustic radiance estimate.
+    pub caustic_k: u32,
+    /// Maximum search radius of global estimates (scene units); default 0.1 × the
+    /// scene's bounding-sphere radius.
+    pub max_radius: Option<f32>,
+    /// Maximum search radius of caustic estimates; default 0.025 × the bounding radius.
+    pub caustic_max_radius: Option<f32>,
+    /// Density-estimation filter: `box`, `cone`, `gaussian`.
+    pub filter: String,
+    /// Half thickness of the disc photons must lie in, as a fraction of the maximum
+    /// radius (≥ 1: a sphere, i.e. no disc).
+    pub disc: f32,
+    /// Shadow rays per shading point for direct light (distribution ray tracing).
+    pub direct_samples: u32,
+    /// Sampler for direct-light samples at each shading point.
+    pub direct_sampler: String,
+    /// Irradiance-cache error tolerance a (Ward): entries with weight > 1/a are used.
+    pub ic_tolerance: f32,
+    /// Smallest irradiance-cache valid radius, fraction of the bounding radius.
+    pub ic_min_radius: f32,
+    /// Largest irradiance-cache valid radius, fraction of the bounding radius.
+    pub ic_max_radius: f32,
 }
 
 impl Default for RenderConfig {
@@ -40,6 +86,26 @@ impl Default for RenderConfig {
             seed: 0,
             threads: 0,
             resolution: None,
+            photons: 200_000,
+            caustic_photons: 50_000,
+            emit_photons: None,
+            max_emitted: 20_000_000,
+            gather: "irradiance_cache".into(),
+            gather_samples: 64,
+            gather_bounces: 1,
+            precomputed_irradiance: true,
+            precompute_stride: 4,
+            k: 100,
+            caustic_k: 60,
+            max_radius: None,
+            caustic_max_radius: None,
+            filter: "cone".into(),
+            disc: 0.25,
+            direct_samples: 4,
+            direct_sampler: "hammersley".into(),
+            ic_tolerance: 0.3,
+            ic_min_radius: 0.01,
+            ic_max_radius: 0.25,
         }
     }
 }

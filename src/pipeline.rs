@@ -34,6 +34,10 @@ pub struct RenderOutcome {
     pub accel_bytes: usize,
     /// Threads used.
     pub threads: usize,
+    /// Integrator counters and phase times (photons, cache entries, …).
+    pub extra: std::collections::BTreeMap<String, f64>,
+    /// Extra images requested by name.
+    pub aovs: Vec<(String, Film)>,
 }
 
 impl RenderOutcome {
@@ -50,7 +54,14 @@ pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {
 
 /// Renders `scene` with `cfg` (validated first). The scene's camera resolution is
 /// replaced by `cfg.resolution` when given.
-pub fn render_scene(mut scene: Scene, cfg: &RenderConfig, quiet: bool) -> Result<RenderOutcome> {
+pub fn render_scene(scene: Scene, cfg: &RenderConfig, quiet: bool) -> Result<RenderOutcome> {
+    render_scene_with_aovs(scene, cfg, quiet, &[])
+}
+
+/// As [`render_scene`], also rendering the named extra images (AOVs) with the same
+/// pre-pass. `cache` marks the integrator's debug points (irradiance-cache entries)
+/// over a dimmed copy of the image.
+pub fn render_scene_with_aovs(mut scene: Scene, cfg: &RenderConfig, quiet: bool, aovs: &[String]) -> Result<RenderOutcome> {
     registry::validate(cfg)?;
     if let Some([w, h]) = cfg.resolution {
         scene.camera = scene.camera.with_resolution(w, h).map_err(anyhow::Error::msg)?;
@@ -63,12 +74,54 @@ pub fn render_scene(mut scene: Scene, cfg: &RenderConfig, quiet: bool) -> Result
         let accel_build_s = t0.elapsed().as_secs_f64();
         let accel_bytes = accel.memory_bytes();
         let world = World::new(scene, accel).map_err(anyhow::Error::msg)?;
-        let mut integrator = registry::make_integrator(cfg)?;
+        let mut integrator = registry::make_integrator_with(cfg, quiet)?;
         let sampler = registry::make_sampler(&cfg.sampler, cfg.seed, Some(cfg.spp as u64))?;
         let t1 = Instant::now();
         integrator.preprocess(&world)?;
         let preprocess_s = t1.elapsed().as_secs_f64();
         let (film, stats) = render(&world, integrator.as_ref(), sampler.as_ref(), cfg.spp, quiet);
-        Ok(RenderOutcome { film, timings: Timings { accel_build_s, preprocess_s, render_s: stats.seconds }, stats, accel_bytes, threads })
+        let mut extra_images = Vec::new();
+        for name in aovs {
+            if name == "cache" {
+                extra_images.push((name.clone(), mark_points(&world, &film, &integrator.debug_points())));
+                continue;
+            }
+            integrator.set_output(name)?;
+            let (img, _) = render(&world, integrator.as_ref(), sampler.as_ref(), cfg.spp, quiet);
+            extra_images.push((name.clone(), img));
+        }
+        Ok(RenderOutcome {
+            film,
+            timings: Timings { accel_build_s, preprocess_s, render_s: stats.seconds },
+            stats,
+            accel_bytes,
+            threads,
+            extra: integrator.stats(),
+            aovs: extra_images,
+        })
     })
+}
+
+/// A dimmed copy of `film` with a red dot at every visible point of `points`
+/// (like the design report's figure 3 of irradiance-cache entries).
+fn mark_points(world: &World, film: &Film, points: &[glam::Vec3]) -> Film {
+    let mut out = film.clone();
+    for p in out.pixels.iter_mut() {
+        *p *= 0.35;
+    }
+    let cam = &world.scene.camera;
+    let mut stats = TraversalStats::default();
+    for &p in points {
+        let Some((x, y)) = cam.project(p) else { continue };
+        if x < 0.0 || y < 0.0 || x >= film.width as f32 || y >= film.height as f32 {
+            continue;
+        }
+        let d = p - cam.eye;
+        let ray = crate::geometry::Ray::new(cam.eye, d);
+        if world.accel.occluded(&ray, 1.0 - 1e-3, &mut stats) {
+            continue;
+        }
+        out.pixels[(y as u32 * film.width + x as u32) as usize] = crate::math::Color::new(1.0, 0.05, 0.05);
+    }
+    out
 }

@@ -3,7 +3,7 @@
 
 use crate::accel::{Accel, bvh::Bvh, linear::Linear};
 use crate::config::{RenderConfig, StrategySpec};
-use crate::integrator::{Integrator, path::PathIntegrator};
+use crate::integrator::{Integrator, path::PathIntegrator, photon::PhotonIntegrator};
 use crate::rr::{RussianRoulette, albedo::Albedo, fixed::Fixed, off::Off, throughput::Throughput};
 use crate::sampler::{Sampler, halton::HaltonSampler, hammersley::HammersleySampler, random::RandomSampler};
 use anyhow::{Result, bail};
@@ -16,7 +16,7 @@ pub const ACCELS: &[&str] = &["none", "bvh"];
 /// Russian-roulette policy names.
 pub const RR_POLICIES: &[&str] = &["off", "fixed", "albedo", "throughput"];
 /// Integrator names.
-pub const INTEGRATORS: &[&str] = &["path"];
+pub const INTEGRATORS: &[&str] = &["path", "photon"];
 
 fn unknown(kind: &str, name: &str, known: &[&str]) -> anyhow::Error {
     anyhow::anyhow!("unknown {kind} `{name}` (known: {})", known.join(", "))
@@ -93,6 +93,11 @@ pub fn make_rr(spec: &str) -> Result<Box<dyn RussianRoulette>> {
 
 /// Builds the integrator a configuration names (checking its settings).
 pub fn make_integrator(cfg: &RenderConfig) -> Result<Box<dyn Integrator>> {
+    make_integrator_with(cfg, true)
+}
+
+/// As [`make_integrator`], with progress bars for long pre-passes unless `quiet`.
+pub fn make_integrator_with(cfg: &RenderConfig, quiet: bool) -> Result<Box<dyn Integrator>> {
     let rr = make_rr(&cfg.rr)?;
     let max_depth = cfg.max_depth.unwrap_or(u32::MAX);
     if rr.never_terminates() && cfg.max_depth.is_none() {
@@ -100,6 +105,7 @@ pub fn make_integrator(cfg: &RenderConfig) -> Result<Box<dyn Integrator>> {
     }
     Ok(match cfg.integrator.as_str() {
         "path" => Box::new(PathIntegrator { max_depth, rr }),
+        "photon" => Box::new(PhotonIntegrator::new(cfg, rr, quiet)?),
         other => return Err(unknown("integrator", other, INTEGRATORS)),
     })
 }

@@ -1,12 +1,14 @@
-//! Integrators (chosen by name: `path`; `photon` arrives with the photon-mapping work).
+//! Integrators (chosen by name: `path`, `photon`).
 
 pub mod path;
+pub mod photon;
 
 use crate::accel::TraversalStats;
 use crate::geometry::Ray;
 use crate::math::Color;
 use crate::sampler::Sampler;
 use crate::world::World;
+use std::collections::BTreeMap;
 
 /// Estimates the radiance arriving along camera rays.
 pub trait Integrator: Send + Sync {
@@ -19,4 +21,16 @@ pub trait Integrator: Send + Sync {
     /// Radiance along `ray`; the sampler has been started for this pixel sample and
     /// its dimensions 0–1 used for the pixel position.
     fn li(&self, world: &World, ray: &Ray, sampler: &mut dyn Sampler, stats: &mut TraversalStats) -> Color;
+    /// Switches what `li` returns to an extra image (AOV) by name.
+    fn set_output(&mut self, aov: &str) -> anyhow::Result<()> {
+        anyhow::bail!("integrator `{}` has no extra image `{aov}`", self.name())
+    }
+    /// Named counters and phase times of the last preprocess/render (for reports).
+    fn stats(&self) -> BTreeMap<String, f64> {
+        BTreeMap::new()
+    }
+    /// World-space points to mark in a debug image (e.g. irradiance-cache entries).
+    fn debug_points(&self) -> Vec<glam::Vec3> {
+        Vec::new()
+    }
 }

@@ -154,6 +154,28 @@ impl Bsdf {
         }
     }
 
+    /// Every delta lobe with its weight (f·|cos|/pdf times the lobe probability):
+    /// the branches a Whitted-style tracer follows. Empty for non-delta BSDFs.
+    pub fn specular_branches(&self, sp: &ShadingPoint, wo: Vec3, mode: TransportMode) -> ([(Vec3, Color); 2], usize) {
+        let mut out = [(Vec3::ZERO, Color::ZERO); 2];
+        let mut n = 0;
+        if !self.is_delta() {
+            return (out, 0);
+        }
+        if let Some(r) = self.sample(sp, wo, 0.0, [0.0; 2], mode) {
+            out[n] = (r.wi, r.weight * r.pdf);
+            n += 1;
+            if r.pdf < 1.0
+                && let Some(t) = self.sample(sp, wo, crate::math::ONE_MINUS_EPSILON, [0.0; 2], mode)
+                && t.wi != r.wi
+            {
+                out[n] = (t.wi, t.weight * t.pdf);
+                n += 1;
+            }
+        }
+        (out, n)
+    }
+
     /// True when every lobe is a delta (no light sampling possible).
     #[inline]
     pub fn is_delta(&self) -> bool {

@@ -62,6 +62,9 @@ impl Sampler for HaltonSampler {
     fn dimension(&self) -> u32 {
         self.dim
     }
+    fn current(&self) -> (u64, u64) {
+        (self.stream, self.index)
+    }
     #[inline]
     fn next_1d(&mut self) -> f32 {
         let d = self.dim;

@@ -69,6 +69,9 @@ impl Sampler for HammersleySampler {
     fn dimension(&self) -> u32 {
         self.dim
     }
+    fn current(&self) -> (u64, u64) {
+        (self.stream, self.index)
+    }
     #[inline]
     fn next_1d(&mut self) -> f32 {
         let d = self.dim;

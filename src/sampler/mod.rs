@@ -48,6 +48,8 @@ pub trait Sampler: Send + Sync {
     fn set_dimension(&mut self, dim: u32);
     /// Current dimension.
     fn dimension(&self) -> u32;
+    /// Current (stream, sample index).
+    fn current(&self) -> (u64, u64);
     /// Next value in [0, 1); advances the dimension by one.
     fn next_1d(&mut self) -> f32;
     /// Next pair of values; advances the dimension by two.

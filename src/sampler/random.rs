@@ -44,6 +44,9 @@ impl Sampler for RandomSampler {
     fn dimension(&self) -> u32 {
         self.dim
     }
+    fn current(&self) -> (u64, u64) {
+        (self.stream, self.index)
+    }
     #[inline]
     fn next_1d(&mut self) -> f32 {
         self.dim = self.dim.saturating_add(1);

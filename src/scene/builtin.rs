@@ -4,18 +4,19 @@
 
 use super::{Face, MeshData, Placement, Scene};
 use crate::camera::Camera;
-use crate::material::Material;
+use crate::material::{Bsdf, Dielectric, Material, Mirror};
 use crate::math::Color;
 use anyhow::{Result, bail};
 use glam::Vec3;
 
 /// Names of the built-in scenes.
-pub const BUILTINS: &[&str] = &["cornell", "furnace", "displaced-sphere"];
+pub const BUILTINS: &[&str] = &["cornell", "cornell-glass", "furnace", "displaced-sphere"];
 
 /// Builds a built-in scene by name.
 pub fn builtin(name: &str) -> Result<Scene> {
     match name {
         "cornell" => Ok(cornell()),
+        "cornell-glass" => Ok(cornell_glass()),
         "furnace" => Ok(furnace(0.5, 1.0, 24)),
         "displaced-sphere" => Ok(displaced_sphere(710)),
         _ => bail!("unknown built-in scene `{name}` (known: {})", BUILTINS.join(", ")),
@@ -40,6 +41,40 @@ fn add_quads(mesh: &mut MeshData, quads: &[[[f32; 3]; 4]], material: u32) {
 /// green 0.14/0.45/0.091); the light's radiance is (17, 12, 4) with albedo 0.78,
 /// the values of the widely used OBJ version of the box.
 pub fn cornell() -> Scene {
+    cornell_with(true)
+}
+
+/// Jensen's box: the Cornell box without its blocks, with a mirror sphere at the
+/// back left and a glass sphere (index 1.5) at the front right, both smooth-shaded
+/// (vertex normals) UV spheres of radius 100 mm. Caustics appear under the glass
+/// sphere and where the mirror focuses light.
+pub fn cornell_glass() -> Scene {
+    let mut s = cornell_with(false);
+    s.name = "cornell-glass".into();
+    let mut sphere = uv_sphere(48, true, |_, _| 1.0);
+    sphere.normals = sphere.positions.iter().map(|p| p.normalize()).collect();
+    for f in &mut sphere.faces {
+        f.n = Some(f.v);
+    }
+    let mut mirror = sphere.clone();
+    mirror.materials.push(Material {
+        name: "mirror".into(),
+        bsdf: Bsdf::Mirror(Mirror { reflectance: Color::splat(0.95) }),
+        emission: Color::ZERO,
+    });
+    let mut glass = sphere;
+    glass.materials.push(Material {
+        name: "glass".into(),
+        bsdf: Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::ONE }),
+        emission: Color::ZERO,
+    });
+    let place = |x: f32, z: f32| Placement { scale: Vec3::splat(100.0), rotate_y_deg: 0.0, translate: Vec3::new(x, 100.0, z) };
+    s.add_mesh(&mirror, &place(390.0, 360.0), None).expect("sphere geometry is valid");
+    s.add_mesh(&glass, &place(175.0, 170.0), None).expect("sphere geometry is valid");
+    s
+}
+
+fn cornell_with(blocks: bool) -> Scene {
     let mut m = MeshData {
         materials: vec![
             Material::diffuse("white", Color::new(0.725, 0.71, 0.68)),
@@ -65,9 +100,22 @@ pub fn cornell() -> Scene {
     add_quads(&mut m, &[[[0.0, 0.0, 559.2], [0.0, 0.0, 0.0], [0.0, 548.8, 0.0], [0.0, 548.8, 559.2]]], green);
     add_quads(&mut m, &[[[552.8, 0.0, 0.0], [549.6, 0.0, 559.2], [556.0, 548.8, 559.2], [556.0, 548.8, 0.0]]], red);
     add_quads(&mut m, &[[[343.0, 548.7, 227.0], [343.0, 548.7, 332.0], [213.0, 548.7, 332.0], [213.0, 548.7, 227.0]]], light);
+    if blocks {
+        add_blocks(&mut m, white);
+    }
+    // 35 mm focal length on a 25 mm film: fov = 2·atan(12.5/35).
+    let fov = 2.0 * (12.5f32 / 35.0).atan().to_degrees();
+    let cam = Camera::new(Vec3::new(278.0, 273.0, -800.0), Vec3::new(278.0, 273.0, 0.0), Vec3::Y, fov, 256, 256)
+        .expect("cornell camera is valid");
+    let mut s = Scene::new("cornell", cam);
+    s.add_mesh(&m, &Placement::default(), None).expect("cornell geometry is valid");
+    s
+}
+
+fn add_blocks(m: &mut MeshData, white: u32) {
     // Short block.
     add_quads(
-        &mut m,
+        m,
         &[
             [[130.0, 165.0, 65.0], [82.0, 165.0, 225.0], [240.0, 165.0, 272.0], [290.0, 165.0, 114.0]],
             [[290.0, 0.0, 114.0], [290.0, 165.0, 114.0], [240.0, 165.0, 272.0], [240.0, 0.0, 272.0]],
@@ -79,7 +127,7 @@ pub fn cornell() -> Scene {
     );
     // Tall block.
     add_quads(
-        &mut m,
+        m,
         &[
             [[423.0, 330.0, 247.0], [265.0, 330.0, 296.0], [314.0, 330.0, 456.0], [472.0, 330.0, 406.0]],
             [[423.0, 0.0, 247.0], [423.0, 330.0, 247.0], [472.0, 330.0, 406.0], [472.0, 0.0, 406.0]],
@@ -89,13 +137,6 @@ pub fn cornell() -> Scene {
         ],
         white,
     );
-    // 35 mm focal length on a 25 mm film: fov = 2·atan(12.5/35).
-    let fov = 2.0 * (12.5f32 / 35.0).atan().to_degrees();
-    let cam = Camera::new(Vec3::new(278.0, 273.0, -800.0), Vec3::new(278.0, 273.0, 0.0), Vec3::Y, fov, 256, 256)
-        .expect("cornell camera is valid");
-    let mut s = Scene::new("cornell", cam);
-    s.add_mesh(&m, &Placement::default(), None).expect("cornell geometry is valid");
-    s
 }
 
 /// Sphere triangle mesh: an n × n UV grid (n rings of n segments; the pole triangles

@@ -1,0 +1,297 @@
+//! Pass 2 of photon mapping and its indirect-light plug-ins (chosen by name:
+//! `direct`, `final_gather`, `precomputed`, `irradiance_cache`).
+//!
+//! [`PhotonContext`] holds the photon maps and the shared shading routines:
+//! distribution-ray-traced direct light, the caustic estimate, the final gather, and
+//! the radiance used at final-gather hits (a full photon estimate, or Christensen's
+//! precomputed irradiance). A [`Gather`] plug-in decides how the indirect light at the
+//! first diffuse surface is computed.
+
+pub mod direct;
+pub mod final_gather;
+pub mod irradiance_cache;
+pub mod precomputed;
+
+use crate::accel::TraversalStats;
+use crate::geometry::Ray;
+use crate::material::{Bsdf, TransportMode};
+use crate::math::{Color, Frame, cosine_hemisphere, hash_words, u32_to_unit};
+use crate::photon::PhotonMaps;
+use crate::photon::estimate::{self, EstimateParams, facing_normal};
+use crate::photon::kdtree::{KdTree, KnnHeap};
+use crate::photon::record::Photon;
+use crate::sampler::Sampler;
+use crate::world::{Interaction, World};
+use glam::Vec3;
+use precomputed::IrradiancePoint;
+use std::cell::RefCell;
+
+/// Plug-in names.
+pub const GATHERS: &[&str] = &["direct", "final_gather", "precomputed", "irradiance_cache"];
+
+/// Specular bounces followed before giving up (Whitted chains).
+pub const MAX_SPECULAR: u32 = 12;
+/// Specular depth up to which both glass branches are followed (deeper: one, by weight).
+pub const SPLIT_DEPTH: u32 = 2;
+
+thread_local! {
+    static HEAP: RefCell<KnnHeap> = RefCell::new(KnnHeap::default());
+}
+
+/// Runs `f` with this thread's reusable k-NN buffer (no allocation per estimate).
+#[inline]
+pub fn with_heap<R>(f: impl FnOnce(&mut KnnHeap) -> R) -> R {
+    HEAP.with(|h| f(&mut h.borrow_mut()))
+}
+
+/// Identifies one shading point for its private random numbers (pixel stream,
+/// sample index, path branch): gather and light samples are a pure function of it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ShadeKey(pub u64);
+
+impl ShadeKey {
+    /// Key of the camera sample the sampler is on.
+    pub fn from_sampler(s: &dyn Sampler) -> Self {
+        let (a, b) = s.current();
+        ShadeKey(hash_words(&[a, b]))
+    }
+    /// Derived key for a sub-path.
+    #[inline]
+    pub fn child(self, what: u64) -> Self {
+        ShadeKey(hash_words(&[self.0, what]))
+    }
+    /// A uniform number for decision `i`.
+    #[inline]
+    pub fn uniform(self, i: u64) -> f32 {
+        u32_to_unit((hash_words(&[self.0, 0x5EED, i]) >> 32) as u32)
+    }
+}
+
+/// Result of a final gather.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GatherResult {
+    /// Reflected indirect radiance towards wo.
+    pub radiance: Color,
+    /// Incident indirect irradiance (for the irradiance cache).
+    pub irradiance: Color,
+    /// Harmonic mean of the gather-ray hit distances (report eq. 11).
+    pub harmonic_distance: f32,
+}
+
+/// Photon maps plus everything the render pass shares between gather plug-ins.
+pub struct PhotonContext {
+    /// The maps from pass 1.
+    pub maps: PhotonMaps,
+    /// Direct + indirect + caustic photons in one tree, for estimates at gather hits.
+    pub global: KdTree<Photon>,
+    /// Parameters of global estimates.
+    pub est_global: EstimateParams,
+    /// Parameters of caustic estimates.
+    pub est_caustic: EstimateParams,
+    /// Christensen's precomputed irradiance points, when enabled.
+    pub precomputed: Option<KdTree<IrradiancePoint>>,
+    /// Search radius for precomputed points.
+    pub precomputed_radius: f32,
+    /// Final-gather sampler per level (sample count fixed per level).
+    pub gather_samplers: Vec<Box<dyn Sampler>>,
+    /// Rays per level.
+    pub gather_counts: Vec<u32>,
+    /// Direct-light sampler (sample count = direct_samples).
+    pub direct_sampler: Box<dyn Sampler>,
+    /// Shadow rays per shading point.
+    pub direct_samples: u32,
+}
+
+/// An indirect-light strategy.
+pub trait Gather: Send + Sync {
+    /// Configuration name.
+    fn name(&self) -> &'static str;
+    /// Work after the photon pass and before rendering (e.g. cache prefill).
+    fn prepare(&mut self, _ctx: &PhotonContext, _world: &World, _quiet: bool) -> anyhow::Result<()> {
+        Ok(())
+    }
+    /// Indirect radiance reflected towards `wo` at the first diffuse surface `it`.
+    #[allow(clippy::too_many_arguments)]
+    fn indirect(
+        &self,
+        ctx: &PhotonContext,
+        world: &World,
+        it: &Interaction,
+        wo: Vec3,
+        bsdf: &Bsdf,
+        key: ShadeKey,
+        stats: &mut TraversalStats,
+    ) -> Color;
+    /// Counters for reports (e.g. cache hits).
+    fn counters(&self) -> Vec<(String, f64)> {
+        Vec::new()
+    }
+    /// Points worth showing in a debug image (e.g. cache entries).
+    fn debug_points(&self) -> Vec<Vec3> {
+        Vec::new()
+    }
+}
+
+impl PhotonContext {
+    /// Direct light at a non-specular point by distribution ray tracing:
+    /// `direct_samples` shadow rays, lights chosen in proportion to power, the samples
+    /// stratified by the direct sampler (its first dimension picks the light).
+    pub fn direct_light(&self, world: &World, it: &Interaction, wo: Vec3, bsdf: &Bsdf, key: ShadeKey, stats: &mut TraversalStats) -> Color {
+        let n = self.direct_samples.max(1);
+        let mut s = self.direct_sampler.clone_box();
+        let mut sum = Color::ZERO;
+        for j in 0..n {
+            s.start(key.0, j as u64);
+            let u_sel = s.next_1d();
+            let u = s.next_2d();
+            let Some(ls) = world.lights.sample_li(&world.scene, it.p, u_sel, u) else { continue };
+            if ls.pdf <= 0.0 {
+                continue;
+            }
+            let f = bsdf.eval(&it.sp, wo, ls.wi);
+            if f.max_element() <= 0.0 {
+                continue;
+            }
+            let vis =
+                if ls.dist.is_infinite() { world.unoccluded_dir(it, ls.wi, stats) } else { world.visible(it, ls.point, ls.normal, stats) };
+            if vis {
+                sum += f * ls.li * (ls.wi.dot(it.sp.ns()).abs() / ls.pdf);
+            }
+        }
+        sum / n as f32
+    }
+
+    /// Caustic radiance by direct visualisation of the caustic map.
+    pub fn caustic(&self, it: &Interaction, wo: Vec3, bsdf: &Bsdf) -> Color {
+        if self.maps.caustic.is_empty() {
+            return Color::ZERO;
+        }
+        with_heap(|h| estimate::radiance(&self.maps.caustic, it, wo, bsdf, &self.est_caustic, h))
+    }
+
+    /// Radiance leaving a final-gather hit towards the gathering point: the nearest
+    /// precomputed irradiance (times the diffuse albedo / π) when enabled, else a full
+    /// estimate from all photons.
+    pub fn exitant_at_hit(&self, it: &Interaction, wo: Vec3, bsdf: &Bsdf) -> Color {
+        if let Some(pre) = &self.precomputed {
+            let n = facing_normal(it, wo);
+            if let Some(e) = precomputed::lookup(pre, it.p, n, self.precomputed_radius) {
+                return bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e;
+            }
+        }
+        with_heap(|h| estimate::radiance(&self.global, it, wo, bsdf, &self.est_global, h))
+    }
+
+    /// Follows a ray through mirrors and glass (one branch, chosen by weight) to the
+    /// first non-specular surface. Returns the hit, the direction towards the
+    /// previous vertex and the accumulated specular weight.
+    pub fn follow_specular(
+        &self,
+        world: &World,
+        mut ray: Ray,
+        key: ShadeKey,
+        stats: &mut TraversalStats,
+    ) -> Option<(Interaction, Vec3, Color)> {
+        let mut w = Color::ONE;
+        for d in 0..MAX_SPECULAR {
+            let it = world.intersect(&ray, stats)?;
+            let bsdf = &world.material(&it).bsdf;
+            let wo = -ray.d.normalize();
+            if !bsdf.is_delta() {
+                return Some((it, wo, w));
+            }
+            let (br, n) = bsdf.specular_branches(&it.sp, wo, TransportMode::Radiance);
+            let (wi, bw) = pick_branch(&br[..n], key.uniform(d as u64))?;
+            w *= bw;
+            ray = world.spawn(&it, wi);
+        }
+        None
+    }
+
+    /// Final gather at `it` with the rays of `level` (0 = first level). Hits are
+    /// shaded by [`PhotonContext::exitant_at_hit`] on the last level, by a full
+    /// direct + caustic + gather on earlier ones.
+    #[allow(clippy::too_many_arguments)]
+    pub fn final_gather(
+        &self,
+        world: &World,
+        it: &Interaction,
+        wo: Vec3,
+        bsdf: &Bsdf,
+        level: usize,
+        key: ShadeKey,
+        stats: &mut TraversalStats,
+    ) -> GatherResult {
+        let n = self.gather_counts[level].max(1);
+        let mut s = self.gather_samplers[level].clone_box();
+        let nrm = facing_normal(it, wo);
+        let frame = Frame::new(nrm);
+        let (mut rad, mut irr, mut inv_d, mut hits) = (Color::ZERO, Color::ZERO, 0.0f32, 0u32);
+        for j in 0..n {
+            s.start(key.0, j as u64);
+            let wi = frame.to_world(cosine_hemisphere(s.next_2d()));
+            let ray = world.spawn(it, wi);
+            let sub = key.child(j as u64 + 1);
+            let Some((hit, hwo, w)) = self.follow_specular(world, ray, sub, stats) else {
+                continue;
+            };
+            let dist = (hit.p - it.p).length();
+            inv_d += 1.0 / dist.max(1e-6);
+            hits += 1;
+            let hb = &world.material(&hit).bsdf;
+            let l = if level + 1 < self.gather_counts.len() {
+                self.shade(world, &hit, hwo, hb, level + 1, sub, stats, false)
+            } else {
+                self.exitant_at_hit(&hit, hwo, hb)
+            } * w;
+            // Cosine-weighted: ∫ f L cos dω ≈ π/N Σ f L, and E ≈ π/N Σ L.
+            rad += bsdf.eval(&it.sp, wo, wi) * l;
+            irr += l;
+        }
+        let scale = std::f32::consts::PI / n as f32;
+        // Rays that escape count as infinitely far (they add nothing to 1/d).
+        let harmonic_distance = if inv_d > 0.0 { n as f32 / inv_d } else { f32::INFINITY };
+        let _ = hits;
+        GatherResult { radiance: rad * scale, irradiance: irr * scale, harmonic_distance }
+    }
+
+    /// Full shading of a non-specular point at gather `level`: direct light, caustics
+    /// and the indirect light of the next level (or `gather` at the first level).
+    #[allow(clippy::too_many_arguments)]
+    pub fn shade(
+        &self,
+        world: &World,
+        it: &Interaction,
+        wo: Vec3,
+        bsdf: &Bsdf,
+        level: usize,
+        key: ShadeKey,
+        stats: &mut TraversalStats,
+        with_direct: bool,
+    ) -> Color {
+        let mut l = self.caustic(it, wo, bsdf) + self.final_gather(world, it, wo, bsdf, level, key, stats).radiance;
+        if with_direct || level > 0 {
+            l += self.direct_light(world, it, wo, bsdf, key.child(0xD1), stats);
+        }
+        l
+    }
+}
+
+/// Picks one branch with probability proportional to its weight's mean, returning
+/// the direction and the weight divided by that probability.
+#[inline]
+pub fn pick_branch(br: &[(Vec3, Color)], u: f32) -> Option<(Vec3, Color)> {
+    let total: f32 = br.iter().map(|b| crate::math::mean(b.1)).sum();
+    if total <= 0.0 {
+        return None;
+    }
+    let mut acc = 0.0;
+    for (i, b) in br.iter().enumerate() {
+        let p = crate::math::mean(b.1) / total;
+        acc += p;
+        if u < acc || i + 1 == br.len() {
+            return if p > 0.0 { Some((b.0, b.1 / p)) } else { None };
+        }
+    }
+    None
+}

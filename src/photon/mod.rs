@@ -1,0 +1,314 @@
+//! Pass 1 of photon mapping: emission, tracing and storage in the direct, indirect
+//! and caustic maps (the design report's state machine, section 4.2.1):
+//! a photon's first diffuse hit goes to the **direct** map; after one or more
+//! specular (mirror/glass) bounces and no diffuse one, its next diffuse hit goes to
+//! the **caustic** map; every later diffuse hit goes to the **indirect** map.
+//!
+//! Photon paths are traced in parallel in fixed-size batches; path i always uses
+//! sample index i of the emission sampler, and batches are merged in path order, so
+//! the maps are identical for any thread count.
+
+pub mod emit;
+pub mod estimate;
+pub mod kdtree;
+pub mod record;
+
+use crate::accel::TraversalStats;
+use crate::geometry::Ray;
+use crate::material::TransportMode;
+use crate::math::Color;
+use crate::rr::{RrContext, RussianRoulette, roulette};
+use crate::sampler::Sampler;
+use crate::world::World;
+use glam::Vec3;
+use kdtree::KdTree;
+use rayon::prelude::*;
+use record::Photon;
+
+/// Which map a stored photon belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapKind {
+    /// First diffuse hit.
+    Direct,
+    /// Diffuse hit after only specular bounces.
+    Caustic,
+    /// Diffuse hit after at least one diffuse bounce.
+    Indirect,
+}
+
+/// Where a photon's next diffuse hit is stored, given the path so far.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathState {
+    /// Straight from the light.
+    FromLight,
+    /// Only specular bounces so far (at least one).
+    Specular,
+    /// At least one diffuse bounce so far.
+    Diffuse,
+}
+
+impl PathState {
+    /// Map for a diffuse hit in this state.
+    #[inline]
+    pub fn map(self) -> MapKind {
+        match self {
+            PathState::FromLight => MapKind::Direct,
+            PathState::Specular => MapKind::Caustic,
+            PathState::Diffuse => MapKind::Indirect,
+        }
+    }
+    /// State after scattering by a delta (`specular == true`) or non-delta lobe.
+    #[inline]
+    pub fn after(self, specular: bool) -> PathState {
+        match (self, specular) {
+            (_, false) => PathState::Diffuse,
+            (PathState::Diffuse, true) => PathState::Diffuse,
+            (_, true) => PathState::Specular,
+        }
+    }
+}
+
+/// Settings of the photon pass.
+pub struct PhotonPassSettings {
+    /// Photons wanted in the direct + indirect maps together.
+    pub global_photons: usize,
+    /// Photons wanted in the caustic map.
+    pub caustic_photons: usize,
+    /// Emit exactly this many photon paths instead of emitting until the maps are full.
+    pub fixed_emit: Option<u64>,
+    /// Upper bound on emitted paths.
+    pub max_emitted: u64,
+    /// Maximum bounces per photon path (u32::MAX = unbounded).
+    pub max_depth: u32,
+}
+
+/// The photon maps and the counts that normalise them.
+pub struct PhotonMaps {
+    /// First-hit photons.
+    pub direct: KdTree<Photon>,
+    /// Photons after at least one diffuse bounce.
+    pub indirect: KdTree<Photon>,
+    /// Photons after specular-only paths.
+    pub caustic: KdTree<Photon>,
+    /// Paths emitted for the direct + indirect maps.
+    pub emitted_global: u64,
+    /// Paths emitted for the caustic map.
+    pub emitted_caustic: u64,
+    /// Paths emitted in all.
+    pub emitted_total: u64,
+    /// Rays traced by the pass.
+    pub rays: TraversalStats,
+    /// Warnings (e.g. a map that could not be filled).
+    pub warnings: Vec<String>,
+}
+
+/// A photon before normalisation by the emitted count.
+#[derive(Clone, Copy, Debug)]
+pub struct RawPhoton {
+    /// Map it belongs to.
+    pub kind: MapKind,
+    /// Position.
+    pub pos: Vec3,
+    /// Power (not yet divided by the number of emitted paths).
+    pub power: Color,
+    /// Incoming direction (towards the photon's origin).
+    pub dir: Vec3,
+    /// Surface normal on the arrival side.
+    pub normal: Vec3,
+}
+
+/// Emission sampler dimensions: light choice, position (2), direction (2); then
+/// `PHOTON_DIMS_PER_BOUNCE` per bounce: lobe, direction (2), roulette.
+const PHOTON_DIM_BOUNCE: u32 = 5;
+const PHOTON_DIMS_PER_BOUNCE: u32 = 4;
+/// Stream id of the emission sequence (distinct from every pixel stream).
+pub const PHOTON_STREAM: u64 = u64::MAX - 1;
+const BATCH: u64 = 1 << 14;
+
+/// Traces one photon path, appending its stored photons to `out`.
+pub fn trace_path(
+    world: &World,
+    sampler: &mut dyn Sampler,
+    index: u64,
+    rr: &dyn RussianRoulette,
+    max_depth: u32,
+    stats: &mut TraversalStats,
+    out: &mut Vec<RawPhoton>,
+) {
+    sampler.start(PHOTON_STREAM, index);
+    let u_sel = sampler.next_1d();
+    let u_pos = sampler.next_2d();
+    let u_dir = sampler.next_2d();
+    let Some(e) = emit::emit_photon(&world.lights, &world.scene, u_sel, u_pos, u_dir) else { return };
+    let initial = e.power;
+    let mut power = e.power;
+    let mut ray = Ray::new(e.origin, e.dir);
+    let mut state = PathState::FromLight;
+    let mut depth = 0u32;
+    while let Some(it) = world.intersect(&ray, stats) {
+        let bsdf = &world.material(&it).bsdf;
+        let wo = -ray.d;
+        if !bsdf.is_delta() {
+            let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
+            out.push(RawPhoton { kind: state.map(), pos: it.p, power, dir: wo, normal: n });
+        }
+        if depth >= max_depth {
+            break;
+        }
+        let dim = PHOTON_DIM_BOUNCE.saturating_add(depth.saturating_mul(PHOTON_DIMS_PER_BOUNCE));
+        sampler.set_dimension(dim);
+        let u_lobe = sampler.next_1d();
+        let u = sampler.next_2d();
+        let u_rr = sampler.next_1d();
+        let Some(bs) = bsdf.sample(&it.sp, wo, u_lobe, u, TransportMode::Importance) else { break };
+        power *= bs.weight;
+        depth += 1;
+        let rel = Color::new(ratio(power.x, initial.x), ratio(power.y, initial.y), ratio(power.z, initial.z));
+        match roulette(rr, &RrContext { depth, throughput: rel, albedo: bsdf.albedo() }, u_rr) {
+            Some(w) => power *= w,
+            None => break,
+        }
+        if power.max_element() <= 0.0 {
+            break;
+        }
+        state = state.after(bs.delta);
+        ray = world.spawn(&it, bs.wi);
+    }
+}
+
+#[inline]
+fn ratio(a: f32, b: f32) -> f32 {
+    if b > 0.0 { a / b } else { 0.0 }
+}
+
+/// Runs the photon pass. `sampler` is the emission sampler prototype (its sample
+/// index is the photon path number).
+pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette, s: &PhotonPassSettings, quiet: bool) -> PhotonMaps {
+    let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.is_delta());
+    let mut warnings = Vec::new();
+    let mut want_caustic = s.caustic_photons;
+    if want_caustic > 0 && !has_specular {
+        warnings.push("the scene has no specular (mirror/glass) surface: the caustic map stays empty".into());
+        want_caustic = 0;
+    }
+    let mut global: Vec<RawPhoton> = Vec::new();
+    let mut caustic: Vec<RawPhoton> = Vec::new();
+    let (mut global_done, mut caustic_done) = (s.global_photons == 0, want_caustic == 0);
+    let (mut n_global, mut n_caustic) = (0u64, 0u64);
+    let limit = s.fixed_emit.unwrap_or(s.max_emitted);
+    let mut emitted = 0u64;
+    let mut rays = TraversalStats::default();
+    let pb = crate::render::progress_bar(limit.min((s.global_photons + s.caustic_photons) as u64 * 4), quiet, "photons");
+    while emitted < limit && (s.fixed_emit.is_some() || !(global_done && caustic_done)) {
+        let n = BATCH.min(limit - emitted);
+        let results: Vec<(Vec<RawPhoton>, TraversalStats)> = (0..n as usize)
+            .into_par_iter()
+            .with_min_len(256)
+            .map_init(
+                || sampler.clone_box(),
+                |smp, j| {
+                    let mut out = Vec::new();
+                    let mut st = TraversalStats::default();
+                    trace_path(world, smp.as_mut(), emitted + j as u64, rr, s.max_depth, &mut st, &mut out);
+                    (out, st)
+                },
+            )
+            .collect();
+        for (j, (photons, st)) in results.into_iter().enumerate() {
+            rays.add(&st);
+            let path = emitted + j as u64;
+            for raw in photons {
+                match raw.kind {
+                    MapKind::Caustic if !caustic_done => caustic.push(raw),
+                    MapKind::Direct | MapKind::Indirect if !global_done => global.push(raw),
+                    _ => {}
+                }
+            }
+            if s.fixed_emit.is_none() {
+                if !global_done && global.len() >= s.global_photons {
+                    global_done = true;
+                    n_global = path + 1;
+                }
+                if !caustic_done && caustic.len() >= want_caustic {
+                    caustic_done = true;
+                    n_caustic = path + 1;
+                }
+            }
+        }
+        emitted += n;
+        pb.set_position(emitted);
+        // A caustic map that stays empty long after the global one filled cannot be
+        // filled (specular surfaces the lights do not reach).
+        if s.fixed_emit.is_none() && global_done && !caustic_done && caustic.is_empty() && emitted >= 4 * n_global.max(BATCH) {
+            warnings
+                .push(format!("no photon reached a diffuse surface via a specular one after {emitted} paths: the caustic map stays empty"));
+            caustic_done = true;
+        }
+    }
+    pb.finish_and_clear();
+    if !global_done {
+        n_global = emitted;
+        if s.fixed_emit.is_none() {
+            warnings.push(format!(
+                "emission cap of {} paths reached with {} of {} global photons stored",
+                s.max_emitted,
+                global.len(),
+                s.global_photons
+            ));
+        }
+    }
+    if !caustic_done || n_caustic == 0 {
+        n_caustic = emitted;
+        if s.fixed_emit.is_none() && want_caustic > 0 && caustic.len() < want_caustic && !caustic.is_empty() {
+            warnings.push(format!(
+                "emission cap of {} paths reached with {} of {} caustic photons stored",
+                s.max_emitted,
+                caustic.len(),
+                want_caustic
+            ));
+        }
+    }
+    let pack = |v: &[RawPhoton], kind: Option<MapKind>, n: u64| -> Vec<Photon> {
+        let inv = 1.0 / n.max(1) as f32;
+        v.iter().filter(|r| kind.is_none_or(|k| r.kind == k)).map(|r| Photon::new(r.pos, r.power * inv, r.dir, r.normal)).collect()
+    };
+    let direct = pack(&global, Some(MapKind::Direct), n_global);
+    let indirect = pack(&global, Some(MapKind::Indirect), n_global);
+    let caustic_v = pack(&caustic, None, n_caustic);
+    let (direct, (indirect, caustic_t)) =
+        rayon::join(|| KdTree::build(direct), || rayon::join(|| KdTree::build(indirect), || KdTree::build(caustic_v)));
+    PhotonMaps {
+        direct,
+        indirect,
+        caustic: caustic_t,
+        emitted_global: n_global,
+        emitted_caustic: n_caustic,
+        emitted_total: emitted,
+        rays,
+        warnings,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn storage_state_machine() {
+        // L D: direct; L S D: caustic; L S S D: caustic; L D D: indirect;
+        // L D S D: indirect; L S D D: indirect.
+        let run = |bounces: &[bool]| {
+            let mut s = PathState::FromLight;
+            for &spec in bounces {
+                s = s.after(spec);
+            }
+            s.map()
+        };
+        assert_eq!(run(&[]), MapKind::Direct);
+        assert_eq!(run(&[true]), MapKind::Caustic);
+        assert_eq!(run(&[true, true]), MapKind::Caustic);
+        assert_eq!(run(&[false]), MapKind::Indirect);
+        assert_eq!(run(&[false, true]), MapKind::Indirect);
+        assert_eq!(run(&[true, false]), MapKind::Indirect);
+    }
+}

@@ -1,0 +1,164 @@
+//! Compact photon record: 20 bytes per photon.
+//!
+//! | bytes | field |
+//! |---|---|
+//! | 12 | position, 3 × f32 |
+//! | 4 | power, RGBE shared exponent (Ward), ~0.4 % precision of the largest channel |
+//! | 2 | incoming direction, octahedral 8 + 8 bits |
+//! | 2 | surface normal (octahedral 7 + 7 bits) and the kd-tree split axis (2 bits) |
+
+use crate::math::Color;
+use glam::{Vec2, Vec3};
+
+/// One stored photon.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct Photon {
+    /// Position.
+    pub pos: [f32; 3],
+    rgbe: [u8; 4],
+    dir: u16,
+    normal_axis: u16,
+}
+
+const _: () = assert!(std::mem::size_of::<Photon>() == 20);
+
+/// Shared-exponent RGB encoding (Ward's RGBE).
+pub fn encode_rgbe(c: Color) -> [u8; 4] {
+    let m = c.max_element();
+    if m.is_nan() || m <= 1e-32 || m.is_infinite() {
+        return [0; 4];
+    }
+    let (_, e) = frexp(m);
+    let scale = 256.0 / 2f32.powi(e);
+    let q = |v: f32| (v.max(0.0) * scale).min(255.0) as u8;
+    [q(c.x), q(c.y), q(c.z), (e + 128).clamp(0, 255) as u8]
+}
+
+/// Decodes [`encode_rgbe`] (at the centre of each quantisation step).
+pub fn decode_rgbe(v: [u8; 4]) -> Color {
+    if v[3] == 0 {
+        return Color::ZERO;
+    }
+    let f = 2f32.powi(v[3] as i32 - 128 - 8);
+    let d = |b: u8| if b == 0 { 0.0 } else { (b as f32 + 0.5) * f };
+    Color::new(d(v[0]), d(v[1]), d(v[2]))
+}
+
+/// Mantissa in [0.5, 1) and exponent with x = m·2^e.
+fn frexp(x: f32) -> (f32, i32) {
+    let e = x.log2().floor() as i32 + 1;
+    let mut m = x / 2f32.powi(e);
+    let mut e = e;
+    // Guard rounding of log2 near powers of two.
+    if m >= 1.0 {
+        m /= 2.0;
+        e += 1;
+    } else if m < 0.5 {
+        m *= 2.0;
+        e -= 1;
+    }
+    (m, e)
+}
+
+/// Octahedral map of a unit vector to [-1, 1]².
+fn oct_encode(n: Vec3) -> Vec2 {
+    let n = n / (n.x.abs() + n.y.abs() + n.z.abs()).max(1e-20);
+    if n.z >= 0.0 { Vec2::new(n.x, n.y) } else { Vec2::new((1.0 - n.y.abs()) * n.x.signum(), (1.0 - n.x.abs()) * n.y.signum()) }
+}
+
+fn oct_decode(e: Vec2) -> Vec3 {
+    let z = 1.0 - e.x.abs() - e.y.abs();
+    let (x, y) = if z >= 0.0 { (e.x, e.y) } else { ((1.0 - e.y.abs()) * e.x.signum(), (1.0 - e.x.abs()) * e.y.signum()) };
+    Vec3::new(x, y, z).normalize_or_zero()
+}
+
+fn quant(v: f32, bits: u32) -> u16 {
+    let max = ((1u32 << bits) - 1) as f32;
+    ((v.clamp(-1.0, 1.0) * 0.5 + 0.5) * max).round() as u16
+}
+
+fn dequant(q: u16, bits: u32) -> f32 {
+    let max = ((1u32 << bits) - 1) as f32;
+    q as f32 / max * 2.0 - 1.0
+}
+
+impl Photon {
+    /// Packs a photon. `dir` points back towards where the photon came from; `normal`
+    /// is the surface normal on the side the photon arrived from.
+    pub fn new(pos: Vec3, power: Color, dir: Vec3, normal: Vec3) -> Self {
+        let d = oct_encode(dir);
+        let n = oct_encode(normal);
+        Photon {
+            pos: pos.to_array(),
+            rgbe: encode_rgbe(power),
+            dir: quant(d.x, 8) | (quant(d.y, 8) << 8),
+            normal_axis: quant(n.x, 7) | (quant(n.y, 7) << 7),
+        }
+    }
+    /// Position.
+    #[inline]
+    pub fn position(&self) -> Vec3 {
+        Vec3::from_array(self.pos)
+    }
+    /// Power (flux).
+    #[inline]
+    pub fn power(&self) -> Color {
+        decode_rgbe(self.rgbe)
+    }
+    /// Replaces the power.
+    pub fn set_power(&mut self, c: Color) {
+        self.rgbe = encode_rgbe(c);
+    }
+    /// Unit incoming direction (towards the photon's origin).
+    #[inline]
+    pub fn direction(&self) -> Vec3 {
+        oct_decode(Vec2::new(dequant(self.dir & 0xFF, 8), dequant(self.dir >> 8, 8)))
+    }
+    /// Unit surface normal on the side the photon arrived from.
+    #[inline]
+    pub fn normal(&self) -> Vec3 {
+        oct_decode(Vec2::new(dequant(self.normal_axis & 0x7F, 7), dequant((self.normal_axis >> 7) & 0x7F, 7)))
+    }
+}
+
+impl crate::photon::kdtree::KdPoint for Photon {
+    #[inline]
+    fn pos(&self) -> Vec3 {
+        Vec3::from_array(self.pos)
+    }
+    #[inline]
+    fn axis(&self) -> usize {
+        (self.normal_axis >> 14) as usize
+    }
+    #[inline]
+    fn set_axis(&mut self, a: usize) {
+        self.normal_axis = (self.normal_axis & 0x3FFF) | ((a as u16 & 3) << 14);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::uniform_sphere;
+    use crate::photon::kdtree::KdPoint;
+
+    #[test]
+    fn round_trips_within_quantisation() {
+        for i in 0..500 {
+            let u = [(i as f32 * 0.618_034) % 1.0, (i as f32 * 0.414_213_5) % 1.0];
+            let d = uniform_sphere(u);
+            let n = uniform_sphere([u[1], u[0]]);
+            let c = Color::new(0.3 + u[0], 0.01 * u[1], 2.0) * 1e-4;
+            let mut p = Photon::new(Vec3::new(1.0, -2.0, 3.5), c, d, n);
+            p.set_axis(2);
+            assert_eq!(p.axis(), 2);
+            assert!(p.direction().dot(d) > 0.999, "dir {d} -> {}", p.direction());
+            assert!(p.normal().dot(n) > 0.995, "normal {n} -> {}", p.normal());
+            let q = p.power();
+            assert!((q - c).abs().max_element() <= c.max_element() / 128.0, "{c} -> {q}");
+            assert_eq!(p.position(), Vec3::new(1.0, -2.0, 3.5));
+        }
+        assert_eq!(decode_rgbe(encode_rgbe(Color::ZERO)), Color::ZERO);
+    }
+}
