@@ -73,8 +73,15 @@ impl Placement {
     pub fn normal(&self, n: Vec3) -> Vec3 {
         let s = n / self.scale;
         let (sin, cos) = self.rotate_y_deg.to_radians().sin_cos();
-        Vec3::new(cos * s.x + sin * s.z, s.y, -sin * s.x + cos * s.z).normalize_or_zero()
+        unit_or_zero(Vec3::new(cos * s.x + sin * s.z, s.y, -sin * s.x + cos * s.z))
     }
+}
+
+/// Normalises `v` (zero stays zero), leaving vectors that are already unit length to
+/// within rounding untouched, so that normalising twice gives the same bits: an
+/// exported and re-loaded scene then has identical normals and light directions.
+pub fn unit_or_zero(v: Vec3) -> Vec3 {
+    if (v.length_squared() - 1.0).abs() <= 4.0 * f32::EPSILON { v } else { v.normalize_or_zero() }
 }
 
 /// A renderable scene.
