@@ -264,9 +264,6 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
-    if scene.dropped_degenerate > 0 {
-        eprintln!("note: dropped {} zero-area triangle(s)", scene.dropped_degenerate);
-    }
     let out = a.output.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}.exr", scene.name)));
     let ntris = scene.triangles.len();
     let name = scene.name.clone();
