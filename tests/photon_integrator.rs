@@ -134,3 +134,42 @@ fn glass_sphere_casts_a_caustic() {
     assert!(max > 20.0 * mean.max(1e-6), "caustic image should have a bright focus: max {max}, mean {mean}");
     assert!(out.extra["photons_caustic"] >= 50_000.0);
 }
+
+/// Every gather method works with every sampler, accelerator and RR policy; the
+/// combinations that cannot work are clear errors.
+#[test]
+fn every_strategy_combination_runs() {
+    for gather in ["direct", "final_gather", "precomputed", "irradiance_cache"] {
+        for sampler in ["random", "halton", "hammersley"] {
+            for accel in ["none", "bvh"] {
+                // Brute force on the 9k-triangle spheres would dominate the suite's time.
+                let scene = if accel == "none" { cornell() } else { cornell_glass() };
+                for rr in ["off", "fixed:0.7", "albedo", "throughput"] {
+                    let mut cfg = RenderConfig {
+                        sampler: sampler.into(),
+                        accel: accel.into(),
+                        rr: rr.into(),
+                        resolution: Some([6, 6]),
+                        spp: 2,
+                        gather_samples: 4,
+                        caustic_photons: 300,
+                        ..photon_cfg(gather, 500)
+                    };
+                    if rr == "off" {
+                        let err = render_scene(scene.clone(), &cfg, true).err().expect("rr off without max_depth must fail");
+                        assert!(err.to_string().contains("max_depth"), "{err}");
+                        cfg.max_depth = Some(6);
+                    }
+                    if sampler == "hammersley" {
+                        let err = render_scene(scene.clone(), &cfg, true).err().expect("hammersley without emit_photons must fail");
+                        assert!(err.to_string().contains("emit_photons"), "{err}");
+                        cfg.emit_photons = Some(2_000);
+                    }
+                    let out = render_scene(scene.clone(), &cfg, true).unwrap_or_else(|e| panic!("{gather}/{sampler}/{accel}/{rr}: {e}"));
+                    assert!(out.film.pixels.iter().all(|p| p.is_finite()), "{gather}/{sampler}/{accel}/{rr}");
+                    assert!(out.film.mean().max_element() > 0.0, "{gather}/{sampler}/{accel}/{rr}");
+                }
+            }
+        }
+    }
+}

@@ -292,6 +292,60 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::Camera;
+    use crate::light::LightDesc;
+    use crate::material::{Bsdf, Material, Mirror};
+    use crate::registry::{make_accel, make_rr, make_sampler};
+    use crate::scene::{Face, MeshData, Placement, Scene};
+
+    /// A point light between a mirror floor (y = 0) and a white ceiling (y = 2):
+    /// photons going up hit the ceiling first (direct map); photons going down are
+    /// reflected by the mirror onto the ceiling (caustic map); everything after a
+    /// ceiling bounce is indirect.
+    #[test]
+    fn storage_on_constructed_paths() {
+        let quad = |y: f32, material: u32, up: bool| {
+            let mut m = MeshData::default();
+            let s = 50.0;
+            m.positions = vec![Vec3::new(-s, y, -s), Vec3::new(s, y, -s), Vec3::new(s, y, s), Vec3::new(-s, y, s)];
+            let (a, b) = if up { ([0, 2, 1], [0, 3, 2]) } else { ([0, 1, 2], [0, 2, 3]) };
+            m.faces = vec![Face { v: a, n: None, material, line: 0 }, Face { v: b, n: None, material, line: 0 }];
+            m
+        };
+        let mut floor = quad(0.0, 0, true);
+        floor.materials =
+            vec![Material { name: "mirror".into(), bsdf: Bsdf::Mirror(Mirror { reflectance: Color::ONE }), emission: Color::ZERO }];
+        let mut ceiling = quad(2.0, 0, false);
+        ceiling.materials = vec![Material::diffuse("white", Color::splat(0.5))];
+        let cam = Camera::new(Vec3::new(0.0, 1.0, 5.0), Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 40.0, 8, 8).unwrap();
+        let mut scene = Scene::new("mirror-room", cam);
+        scene.add_mesh(&floor, &Placement::default(), None).unwrap();
+        scene.add_mesh(&ceiling, &Placement::default(), None).unwrap();
+        scene.lights.push(LightDesc::Point { position: Vec3::new(0.0, 1.0, 0.0), intensity: Color::ONE });
+        let accel = make_accel("bvh", &scene.triangles).unwrap();
+        let world = World::new(scene, accel).unwrap();
+        let rr = make_rr("albedo").unwrap();
+        let mut sampler = make_sampler("halton", 1, None).unwrap();
+        let (mut first, mut later) = (Vec::new(), Vec::new());
+        let mut stats = TraversalStats::default();
+        for i in 0..4000 {
+            let mut out = Vec::new();
+            trace_path(&world, sampler.as_mut(), i, rr.as_ref(), 20, &mut stats, &mut out);
+            let Some((head, tail)) = out.split_first() else { continue };
+            // Every stored photon is on the ceiling (the only diffuse surface).
+            assert!(out.iter().all(|p| (p.pos.y - 2.0).abs() < 1e-3));
+            first.push((head.kind, head.dir.y));
+            later.extend(tail.iter().map(|p| p.kind));
+        }
+        // First stored photon: direct when it came straight up, caustic when it came
+        // via the mirror; the two are about equally likely.
+        for &(kind, _) in &first {
+            assert!(kind == MapKind::Direct || kind == MapKind::Caustic);
+        }
+        let caustic = first.iter().filter(|f| f.0 == MapKind::Caustic).count() as f64 / first.len() as f64;
+        assert!((caustic - 0.5).abs() < 0.05, "caustic fraction {caustic}");
+        assert!(!later.is_empty() && later.iter().all(|&k| k == MapKind::Indirect));
+    }
 
     #[test]
     fn storage_state_machine() {
