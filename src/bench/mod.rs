@@ -1,6 +1,9 @@
 //! Benchmarks run by `photonlab bench` (release builds; figures are ratios measured
 //! side by side in one run).
 
+pub mod knn;
+pub mod scaling;
+
 use anyhow::Result;
 use clap::Subcommand;
 
@@ -9,11 +12,31 @@ use clap::Subcommand;
 pub enum BenchCommand {
     /// Acceleration-structure build and ray throughput.
     Accel,
+    /// Photon kd-tree against kiddo: build and k-NN query times on the same points.
+    Knn(knn::KnnArgs),
+    /// Per-phase speed-up of a photon render from 1 to 2 threads.
+    Scaling(scaling::ScalingArgs),
+    /// Every benchmark that finishes within about ten minutes, one after another.
+    All {
+        /// One JSON object per line instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Runs a benchmark.
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Accel => anyhow::bail!("bench accel: not built yet"),
+        BenchCommand::Knn(a) => knn::run(&a),
+        BenchCommand::Scaling(a) => scaling::run(&a),
+        BenchCommand::All { json } => run_all(json),
     }
+}
+
+/// `bench all`: each benchmark with its default (full-size) settings.
+fn run_all(json: bool) -> Result<()> {
+    knn::run(&knn::KnnArgs { n: 1_000_000, queries: 20_000, threads: None, json })?;
+    scaling::run(&scaling::ScalingArgs { scene: "cornell-glass".into(), json })?;
+    Ok(())
 }

@@ -130,6 +130,17 @@ impl<T: KdPoint> KdTree<T> {
         self.points.is_empty()
     }
 
+    /// Position of the point at tree index `i`, as the searches see it.
+    #[inline]
+    pub fn position(&self, i: usize) -> Vec3 {
+        self.points[i].pos()
+    }
+
+    /// Bytes held by the tree (its arrays; the struct itself aside).
+    pub fn memory_bytes(&self) -> usize {
+        self.points.len() * std::mem::size_of::<T>()
+    }
+
     /// Finds up to `k` nearest points to `p` within distance² `max_r2` that pass
     /// `filter`. Results are in `heap.items` (unordered); returns the squared radius
     /// of the region searched: the k-th distance² if k were found, else `max_r2`.
