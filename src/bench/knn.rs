@@ -161,7 +161,7 @@ mod imp {
 
     fn own_query(tree: &KdTree<Photon>, q: Vec3, op: Op, heap: &mut KnnHeap) -> usize {
         let r2 = op.radius.map_or(f32::INFINITY, |r| r * r);
-        tree.knn(q, op.k, r2, heap, &|_| true);
+        tree.knn(q, op.k, r2, heap, &|_, _| true);
         heap.items.len()
     }
 
@@ -214,14 +214,17 @@ mod imp {
         for dist in [Dist::Cube, Dist::Faces] {
             let pts: Vec<(Vec3, Vec3)> = (0..args.n as u64).map(|i| dist.point(1, i)).collect();
             let queries: Vec<Vec3> = (0..args.queries as u64).map(|i| dist.point(2, i).0).collect();
-            let photons: Vec<Photon> = pts.iter().map(|&(p, n)| Photon::new(p, Color::splat(1e-6), n, n)).collect();
+            let positions: Vec<Vec3> = pts.iter().map(|x| x.0).collect();
+            let photons: Vec<Photon> = pts.iter().map(|&(_, n)| Photon::new(Color::splat(1e-6), n, n)).collect();
             let mut own = None;
             let mut kid = None;
             for &t in &threads {
                 let pool = thread_pool(t)?;
-                let (o, own_s) = pool.install(|| time(|| KdTree::build(photons.clone())));
-                // kiddo gets the positions exactly as the own tree stores them.
-                let kpts: Vec<[f32; 3]> = (0..o.len()).map(|i| o.position(i).to_array()).collect();
+                let photons = photons.clone();
+                let (o, own_s) = pool.install(|| time(|| KdTree::build_with(&positions, photons)));
+                // kiddo gets the points exactly as the own tree stores them (quantised),
+                // in the original order.
+                let kpts: Vec<[f32; 3]> = positions.iter().map(|&p| o.stored_position(p).to_array()).collect();
                 let (k, kiddo_s) = pool.install(|| time(|| Kiddo::new_from_slice(&kpts)));
                 let k = k.map_err(|e| anyhow::anyhow!("kiddo build: {e:?}"))?;
                 rows.push(Row {
