@@ -33,7 +33,7 @@ pub trait KdPoint: Copy + Send + Sync {
 }
 
 /// Largest range stored as a leaf bucket.
-pub const LEAF: usize = 12;
+pub const LEAF: usize = 20;
 const BITS: u32 = 20;
 const MASK: u64 = (1 << BITS) - 1;
 const AXIS_SHIFT: u32 = 60;
@@ -59,10 +59,11 @@ impl<T> Default for KdTree<T> {
     }
 }
 
-/// Reusable buffer for k-NN queries: (squared distance, index) max-heap.
+/// Reusable buffers for k-NN queries: the candidates (squared distance, index) and
+/// the traversal stack.
 #[derive(Clone, Debug, Default)]
 pub struct KnnHeap {
-    /// Heap entries (distance², index into the tree's points).
+    /// Candidates (distance², index into the tree's points), unordered.
     pub items: Vec<(f32, u32)>,
     /// Traversal stack, kept to avoid an allocation per query.
     stack: Vec<Pending>,
@@ -79,45 +80,45 @@ struct Pending {
 }
 
 impl KnnHeap {
-    #[inline]
+    /// Offers a candidate closer than `max_r2`. Candidates are appended; when k are
+    /// held `max_r2` becomes the largest of them, and whenever 2k are held the k
+    /// nearest are selected (in linear time) and `max_r2` shrinks to the k-th
+    /// distance: amortised O(1) per candidate, with no per-candidate sifting.
+    #[inline(always)]
     fn push(&mut self, k: usize, d2: f32, i: u32, max_r2: &mut f32) {
-        let h = &mut self.items;
-        if h.len() < k {
-            h.push((d2, i));
-            // Sift up.
-            let mut c = h.len() - 1;
-            while c > 0 {
-                let p = (c - 1) / 2;
-                if h[p].0 >= h[c].0 {
-                    break;
-                }
-                h.swap(p, c);
-                c = p;
-            }
-            if h.len() == k {
-                *max_r2 = h[0].0;
-            }
-        } else if d2 < h[0].0 {
-            // Sift the new item down from the root.
-            let n = h.len();
-            let mut p = 0;
-            loop {
-                let l = 2 * p + 1;
-                if l >= n {
-                    break;
-                }
-                let r = l + 1;
-                let c = if r < n && h[r].0 > h[l].0 { r } else { l };
-                if d2 >= h[c].0 {
-                    break;
-                }
-                h[p] = h[c];
-                p = c;
-            }
-            h[p] = (d2, i);
-            *max_r2 = h[0].0;
+        self.items.push((d2, i));
+        let n = self.items.len();
+        if n == k {
+            *max_r2 = self.items.iter().fold(0.0f32, |m, e| m.max(e.0));
+        } else if n == 2 * k {
+            *max_r2 = self.keep_nearest(k);
         }
     }
+
+    /// Keeps the k nearest candidates; returns the k-th distance².
+    #[cold]
+    fn keep_nearest(&mut self, k: usize) -> f32 {
+        self.items.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0));
+        self.items.truncate(k);
+        self.items[k - 1].0
+    }
+}
+
+/// Hints the cache to fetch the key of the node or leaf covering [lo, hi): the
+/// descent's loads depend on each other, so fetching both children while the parent
+/// is compared hides most of the memory latency.
+#[inline(always)]
+fn prefetch(keys: &[u64], lo: usize, hi: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let at = if hi - lo <= LEAF { lo } else { lo + (hi - lo) / 2 };
+        if let Some(k) = keys.get(at) {
+            // SAFETY: a prefetch never faults and `k` is a valid reference anyway.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((k as *const u64).cast()) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (keys, lo, hi);
 }
 
 #[inline(always)]
@@ -222,7 +223,8 @@ impl<T> KdTree<T> {
         let inv = Vec3::select(self.step.cmpgt(Vec3::ZERO), self.step.recip(), Vec3::ZERO);
         // Non-finite coordinates land on the box's lower corner (`as` saturates and
         // maps NaN to 0).
-        let q = ((p - self.origin) * inv).round();
+        let q = (p - self.origin) * inv + 0.5;
+        // Truncating q + 0.5 rounds to nearest (q ≥ 0); cheaper than `round`.
         let c = |v: f32| (v as u64).min(MASK);
         c(q.x) | (c(q.y) << BITS) | (c(q.z) << (2 * BITS))
     }
@@ -280,6 +282,8 @@ impl<T> KdTree<T> {
                     break;
                 }
                 let m = lo + (hi - lo) / 2;
+                prefetch(&self.keys, lo, m);
+                prefetch(&self.keys, m + 1, hi);
                 let key = self.keys[m];
                 let axis = key_axis(key);
                 let q = self.decode(key);
@@ -304,6 +308,9 @@ impl<T> KdTree<T> {
             }
         }
         heap.stack = stack;
+        if heap.items.len() > k {
+            r2 = heap.keep_nearest(k);
+        }
         if heap.items.len() == k { r2 } else { max_r2 }
     }
 
