@@ -37,6 +37,6 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
 /// `bench all`: each benchmark with its default (full-size) settings.
 fn run_all(json: bool) -> Result<()> {
     knn::run(&knn::KnnArgs { n: 1_000_000, queries: 20_000, threads: None, reps: 3, json })?;
-    scaling::run(&scaling::ScalingArgs { scene: "cornell-glass".into(), json })?;
+    scaling::run(&scaling::ScalingArgs { json, ..Default::default() })?;
     Ok(())
 }

@@ -222,6 +222,7 @@ impl Integrator for PhotonIntegrator {
             eprintln!("warning: {w}");
         }
         self.times.insert("photon_pass_s".into(), t0.elapsed().as_secs_f64());
+        self.times.insert("photon_trace_s".into(), t0.elapsed().as_secs_f64() - maps.build_s);
         let t1 = Instant::now();
         let t_global = Instant::now();
         let global = KdTree::merged(&[&maps.direct, &maps.indirect, &maps.caustic]);

@@ -37,8 +37,10 @@ pub const LEAF: usize = 20;
 const BITS: u32 = 20;
 const MASK: u64 = (1 << BITS) - 1;
 const AXIS_SHIFT: u32 = 60;
-/// Ranges at least this large are built in parallel.
+/// Ranges at least this large build their two subtrees in parallel.
 const PAR_BUILD: usize = 1 << 14;
+/// Ranges at least this large are also split in parallel.
+const PAR_PARTITION: usize = 1 << 17;
 
 /// Implicit balanced kd-tree over quantised positions.
 #[derive(Clone, Debug)]
@@ -131,18 +133,100 @@ fn key_axis(key: u64) -> usize {
     ((key >> AXIS_SHIFT) & 3) as usize
 }
 
+/// Bounds of the quantised coordinates of a range, per axis.
+fn coord_bounds(e: &[(u64, u32)]) -> ([u32; 3], [u32; 3]) {
+    let mut b = ([u32::MAX; 3], [0u32; 3]);
+    for &(k, _) in e {
+        for a in 0..3 {
+            b.0[a] = b.0[a].min(coord(k, a));
+            b.1[a] = b.1[a].max(coord(k, a));
+        }
+    }
+    b
+}
+
+/// Median split of `e` on `axis` by the key (coordinate, original index), which is
+/// unique, so the median and both halves as sets are fully determined. Small ranges
+/// use an in-place selection; large ones a parallel radix selection of the median
+/// and a stable parallel partition, whose result does not depend on the thread count
+/// either.
+fn split_at_median(e: &mut [(u64, u32)], axis: usize, m: usize) {
+    let key = |x: &(u64, u32)| (coord(x.0, axis), x.1);
+    if e.len() < PAR_PARTITION {
+        e.select_nth_unstable_by_key(m, key);
+        return;
+    }
+    const R: usize = 1 << (BITS / 2);
+    // The coordinate holding rank m: a histogram on the high half of its bits, then
+    // on the low half within the chosen bucket.
+    let hist = |sel: &(dyn Fn(u32) -> Option<usize> + Sync)| {
+        e.par_chunks(1 << 14)
+            .map(|ch| {
+                let mut h = vec![0usize; R];
+                for x in ch {
+                    if let Some(b) = sel(coord(x.0, axis)) {
+                        h[b] += 1;
+                    }
+                }
+                h
+            })
+            .reduce(
+                || vec![0usize; R],
+                |mut a, b| {
+                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                    a
+                },
+            )
+    };
+    let pick = |h: &[usize], rank: usize| {
+        let mut below = 0;
+        for (b, &c) in h.iter().enumerate() {
+            if below + c > rank {
+                return (b as u32, below);
+            }
+            below += c;
+        }
+        (R as u32 - 1, below)
+    };
+    let half = BITS / 2;
+    let (hi, below_hi) = pick(&hist(&|c| Some((c >> half) as usize)), m);
+    let (lo, below_lo) = pick(&hist(&|c| ((c >> half) == hi).then_some((c & (R as u32 - 1)) as usize)), m - below_hi);
+    let v = (hi << half) | lo;
+    // Among points at coordinate v, the median is the one of rank m − below by index.
+    let mut at_v: Vec<u32> = e.par_iter().filter(|x| coord(x.0, axis) == v).map(|x| x.1).collect();
+    let r = m - below_hi - below_lo;
+    let (_, &mut pivot_index, _) = at_v.select_nth_unstable(r);
+    let pivot = (v, pivot_index);
+    let left: Vec<(u64, u32)> = e.par_iter().filter(|x| key(x) < pivot).copied().collect();
+    let right: Vec<(u64, u32)> = e.par_iter().filter(|x| key(x) > pivot).copied().collect();
+    let mid = e.par_iter().find_first(|x| key(x) == pivot).copied();
+    if let Some(mid) = mid
+        && left.len() == m
+    {
+        e[..m].copy_from_slice(&left);
+        e[m] = mid;
+        e[m + 1..].copy_from_slice(&right);
+    } else {
+        // Unreachable (the ranks add up); fall back to the serial selection.
+        e.select_nth_unstable_by_key(m, key);
+    }
+}
+
 fn build_rec(e: &mut [(u64, u32)]) {
     let n = e.len();
     if n <= LEAF {
         return;
     }
-    let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
-    for &(k, _) in e.iter() {
-        for a in 0..3 {
-            lo[a] = lo[a].min(coord(k, a));
-            hi[a] = hi[a].max(coord(k, a));
-        }
-    }
+    let (lo, hi) = if n >= PAR_PARTITION {
+        e.par_chunks(1 << 14).map(coord_bounds).reduce(
+            || ([u32::MAX; 3], [0; 3]),
+            |a, b| {
+                ([a.0[0].min(b.0[0]), a.0[1].min(b.0[1]), a.0[2].min(b.0[2])], [a.1[0].max(b.1[0]), a.1[1].max(b.1[1]), a.1[2].max(b.1[2])])
+            },
+        )
+    } else {
+        coord_bounds(e)
+    };
     let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
     let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
         0
@@ -152,8 +236,7 @@ fn build_rec(e: &mut [(u64, u32)]) {
         2
     };
     let m = n / 2;
-    // Ties broken by the original index, so the layout is fully determined.
-    e.select_nth_unstable_by_key(m, |&(k, i)| (coord(k, axis), i));
+    split_at_median(e, axis, m);
     e[m].0 |= (axis as u64) << AXIS_SHIFT;
     let (left, rest) = e.split_at_mut(m);
     let right = &mut rest[1..];
@@ -196,12 +279,8 @@ impl<T: Copy + Send + Sync> KdTree<T> {
 
     /// A tree over the points of several trees (positions as stored in each).
     pub fn merged(trees: &[&KdTree<T>]) -> Self {
-        let mut pos = Vec::with_capacity(trees.iter().map(|t| t.len()).sum());
-        let mut items = Vec::with_capacity(pos.capacity());
-        for t in trees {
-            pos.extend((0..t.len()).map(|i| t.position(i)));
-            items.extend_from_slice(&t.points);
-        }
+        let pos: Vec<Vec3> = trees.iter().flat_map(|t| t.keys.par_iter().map(|&k| t.decode(k)).collect::<Vec<_>>()).collect();
+        let items = trees.iter().flat_map(|t| t.points.iter().copied()).collect();
         Self::build_with(&pos, items)
     }
 }
@@ -453,15 +532,41 @@ mod tests {
         }
     }
 
+    /// Every node's range: left side ≤ median ≤ right side on the node's axis.
+    fn assert_valid(t: &KdTree<P>, lo: usize, hi: usize) {
+        if hi - lo <= LEAF {
+            return;
+        }
+        let m = lo + (hi - lo) / 2;
+        let a = key_axis(t.keys[m]);
+        let c = coord(t.keys[m], a);
+        assert!(t.keys[lo..m].iter().all(|&k| coord(k, a) <= c));
+        assert!(t.keys[m + 1..hi].iter().all(|&k| coord(k, a) >= c));
+        assert_valid(t, lo, m);
+        assert_valid(t, m + 1, hi);
+    }
+
     #[test]
-    fn build_is_independent_of_thread_count() {
-        let pts = points(100_000, true);
+    fn build_is_valid_and_independent_of_thread_count() {
+        // Large enough for the parallel median split at the top levels; the faces
+        // give many equal coordinates.
+        let pts = points(3 * PAR_PARTITION, true);
         let build = |threads| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| KdTree::build(pts.clone()));
         let (a, b) = (build(1), build(3));
         assert_eq!(a.keys, b.keys);
         assert_eq!(a.points, b.points);
+        assert_valid(&a, 0, a.len());
+        let mut heap = KnnHeap::default();
+        for q in 0..20u64 {
+            let p = Vec3::new(rnd(q, 5), rnd(q, 6), rnd(q, 7));
+            let r2 = a.knn(p, 30, f32::INFINITY, &mut heap, &|_, _| true);
+            let mut d: Vec<f32> = (0..a.len()).map(|i| (a.position(i) - p).length_squared()).collect();
+            d.select_nth_unstable_by(29, f32::total_cmp);
+            assert_eq!(r2, d[29]);
+        }
         let m = KdTree::merged(&[&a, &b]);
-        assert_eq!(m.len(), 200_000);
+        assert_eq!(m.len(), 2 * a.len());
+        assert_valid(&m, 0, m.len());
     }
 
     #[test]
