@@ -20,7 +20,7 @@ pub struct ScalingArgs {
     /// Built-in scene.
     #[arg(long, default_value = "cornell-glass")]
     pub scene: String,
-    /// Photons in the direct + indirect maps (the caustic map gets a quarter).
+    /// Photons in the direct + indirect maps (the caustic map gets a tenth).
     #[arg(long, default_value_t = 1_000_000)]
     pub photons: u32,
     /// Image width and height in pixels.
@@ -71,7 +71,7 @@ pub fn run(args: &ScalingArgs) -> Result<()> {
                 integrator: "photon".into(),
                 gather: "irradiance_cache".into(),
                 photons: args.photons,
-                caustic_photons: args.photons / 4,
+                caustic_photons: args.photons / 10,
                 spp: args.spp,
                 threads,
                 resolution: Some([args.size, args.size]),
@@ -111,7 +111,7 @@ pub fn run(args: &ScalingArgs) -> Result<()> {
             "bench scaling: {}, {} global + {} caustic photons, irradiance cache, {}x{} px, {} spp; best of {} runs",
             args.scene,
             args.photons,
-            args.photons / 4,
+            args.photons / 10,
             args.size,
             args.size,
             args.spp,

@@ -33,7 +33,7 @@ pub trait KdPoint: Copy + Send + Sync {
 }
 
 /// Largest range stored as a leaf bucket.
-pub const LEAF: usize = 20;
+pub const LEAF: usize = 16;
 const BITS: u32 = 20;
 const MASK: u64 = (1 << BITS) - 1;
 const AXIS_SHIFT: u32 = 60;
