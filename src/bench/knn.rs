@@ -146,6 +146,8 @@ mod imp {
         kiddo_bytes_per_point: f64,
         /// Queries whose neighbour sets differ (ties aside); None for build rows.
         mismatches: Option<usize>,
+        /// 1-minute load average when the row was measured.
+        load_average: Option<f64>,
     }
 
     /// Bytes held by kiddo's immutable tree, from its own report of its leaf arena
@@ -256,6 +258,7 @@ mod imp {
                     own_bytes_per_point: o.memory_bytes() as f64 / o.len() as f64,
                     kiddo_bytes_per_point: kiddo_bytes(&k) as f64 / k.size().max(1) as f64,
                     mismatches: None,
+                    load_average: crate::bench::scaling::load_average(),
                 });
                 own = Some((o, kpts));
                 kid = Some(k);
@@ -326,6 +329,7 @@ mod imp {
                         own_bytes_per_point: bytes.0,
                         kiddo_bytes_per_point: bytes.1,
                         mismatches: Some(mismatches),
+                        load_average: crate::bench::scaling::load_average(),
                     });
                 }
             }
@@ -346,9 +350,10 @@ mod imp {
         }
         if let Some(r) = rows.first() {
             println!(
-                "bench knn: {} points, {} queries; times in ms (build) or ns/query; ratio = own / kiddo",
+                "bench knn: {} points, {} queries; times in ms (build) or ns/query (wall time / queries); ratio = own / kiddo; load average {}",
                 r.n,
-                rows.iter().map(|r| r.queries).max().unwrap_or(0)
+                rows.iter().map(|r| r.queries).max().unwrap_or(0),
+                r.load_average.map_or("unknown".into(), |l| format!("{l:.1}"))
             );
         }
         println!("| dist | op | threads | own | kiddo | ratio | own B/pt | kiddo B/pt | same |");
