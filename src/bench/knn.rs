@@ -150,19 +150,17 @@ mod imp {
         load_average: Option<f64>,
     }
 
-    /// Bytes held by kiddo's immutable tree, from its own report of its leaf arena
-    /// and leaf count plus its stem array (one f32 split per stem).
+    /// Bytes held by kiddo's immutable tree, from its layout (kiddo reports no size):
+    /// per point 3 × f32 and a u32 item in the leaf arena, per leaf an extent of two
+    /// usize, per stem one f32 split (stem count from its `Debug` output, which
+    /// reports it; else one stem per leaf).
     fn kiddo_bytes(t: &Kiddo) -> usize {
         let dbg = format!("{t:?}");
-        let field = |name: &str| -> Option<usize> {
-            let at = dbg.find(&format!("{name}: "))? + name.len() + 2;
-            dbg[at..].split(|c: char| !c.is_ascii_digit()).next()?.parse().ok()
-        };
-        let arena = field("arena_bytes").unwrap_or(t.size() * 16);
-        let leaves = t.leaf_count();
-        // Stems: one split value per internal node of a complete binary tree over the leaves.
-        let stems = leaves.next_power_of_two();
-        arena + leaves * 16 + stems * 4
+        let stems = dbg
+            .find("stem_count: ")
+            .and_then(|at| dbg[at + 12..].split(|c: char| !c.is_ascii_digit()).next()?.parse().ok())
+            .unwrap_or(t.leaf_count());
+        t.size() * 16 + t.leaf_count() * 2 * std::mem::size_of::<usize>() + stems * 4
     }
 
     fn own_query(tree: &KdTree<Photon>, q: Vec3, op: Op, heap: &mut KnnHeap) -> usize {
