@@ -199,7 +199,7 @@ fn split_at_median(e: &mut [(u64, u32)], axis: usize, m: usize) {
     let (_, &mut pivot_index, _) = at_v.select_nth_unstable(r);
     let pivot = ((v as u64) << 32) | pivot_index as u64;
     // One order-preserving pass; the pivot (the largest on the left) then moves to m.
-    let (mut left, right): (Vec<(u64, u32)>, Vec<(u64, u32)>) = e.par_iter().partition(|x| key(x) <= pivot);
+    let (mut left, right): (Vec<_>, Vec<_>) = e.par_iter().partition(|x| key(x) <= pivot);
     if left.len() == m + 1
         && let Some(at) = left.par_iter().position_first(|x| key(x) == pivot)
     {
