@@ -283,19 +283,26 @@ const LEGEND: &str = "
 ## What the statistics are
 
 - `rr/*`: Welch's t between the estimator with the policy and without roulette (same
-  maximum depth), α = 0.001; `*/mde%` rows give the smallest relative bias the sample
-  detects with 80 % power (must be ≤ 1 %). `rr/*/broken` divides no survivor by its
-  survival probability (planted, must fail).
-- `discrepancy/l2/*`: Warnock's L2-star discrepancy at the largest N; `ratio` rows
-  random / low-discrepancy (must be ≥ the margin), `slope` rows the log–log slope over
-  N ≥ 2^8 (theory: −1 up to log factors for low-discrepancy sets, −0.5 for random);
-  `star2d` rows the exact 2-D star discrepancy. `diagonal` is a planted degenerate set.
-- `chi2/*`: χ² of a (θ, φ) histogram of N samples against expected counts from
-  numerical integration of the routine's own pdf, bins with expectation < 5 pooled;
-  Šidák-corrected α over the whole family. `planted` rows use a wrong pdf.
-- `brdf/albedo/*`: maximum directional albedo over incident angles (numerical
-  integration, must be ≤ 1); `brdf/reciprocity/*`: maximum relative |f(wi,wo) − f(wo,wi)|.
-- `convergence/*`: log–log slope of the error against samples or photons.
+  maximum depth, independent seeds), α = 0.001; `*/mde%` rows give the smallest
+  relative bias the sample detects with 80 % power (must be ≤ 1 %). `rr/*/broken`
+  divides no survivor by its survival probability (planted, must fail).
+- `discrepancy/l2/*`: Warnock's L2-star discrepancy T; `ratio` = T(random) / T(set) at
+  N = 2^14 (must be ≥ 2.5); `slope` = log–log slope over N ≥ 2^8, within 0.12 of the
+  theoretical rate fitted over the same N: (log N)^k / N with k = d/2 (Halton
+  sequence) or (d − 1)/2 (Hammersley point set), N^−1/2 for random (RMS of 4 seeds).
+  `star2d` rows: the exact 2-D star discrepancy, rates (log N)^2 / N (Halton) and
+  log N / N (Hammersley). `diagonal` is a planted degenerate set (must fail).
+- `chi2/*`: Pearson's χ² of a (θ, φ) histogram of 10^6 samples against expected
+  counts from adaptive quadrature of the routine's own pdf, bins expecting < 5
+  pooled; Šidák-corrected level over the family (family-wise α = 0.01). Glass and
+  mirror rows test the discrete reflect / refract choice against the Fresnel
+  probability. `planted` rows test correct samples against a wrong pdf (must fail).
+- `brdf/albedo/*`: largest directional albedo over incident angles 0–89° (numerical
+  integration; must be ≤ 1.001); `brdf/reciprocity/*`: largest relative
+  |f(wi,wo) − f(wo,wi)| (must be ≤ 10^−3); `brdf/energy/*`: flux scattered by the
+  delta BSDFs (≤ 1).
+- `convergence/*`: log–log slope of the MSE against samples per pixel (random: −1 ±
+  0.15; Halton / Hammersley: at least 0.2 steeper) or photons (≤ −0.3).
 ";
 
 /// The rows as an aligned text table.
