@@ -37,6 +37,8 @@ pub enum Command {
     /// Benchmarks (release builds).
     #[command(subcommand)]
     Bench(crate::bench::BenchCommand),
+    /// Statistical test suite: RR bias, discrepancy, chi-square, BRDF, convergence.
+    Stats(crate::stats::StatsArgs),
 }
 
 /// `scene` subcommands.
@@ -226,6 +228,7 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Bench(b) => crate::bench::run(b),
+        Command::Stats(a) => crate::stats::run_cli(&a),
         Command::Diff { test, reference, out } => {
             let a = crate::film::Film::read_exr(&test)?;
             let b = crate::film::Film::read_exr(&reference)?;

@@ -22,4 +22,5 @@ pub mod render;
 pub mod rr;
 pub mod sampler;
 pub mod scene;
+pub mod stats;
 pub mod world;
