@@ -160,6 +160,8 @@ pub struct Cell {
     pub index: usize,
     /// Index of the configuration (cells of one configuration differ only in seed).
     pub config_index: usize,
+    /// Index into [`Manifest::scenes`].
+    pub scene: usize,
     /// File stem of this cell's outputs (unique within the experiment).
     pub stem: String,
     /// Human-readable configuration label (`gather=direct photons=20000` or a name).
@@ -187,8 +189,8 @@ pub struct Manifest {
     pub description: String,
     /// The manifest text (copied next to the results).
     pub text: String,
-    /// Scene.
-    pub scene: SceneSpec,
+    /// Scenes (several make `scene` the outermost axis).
+    pub scenes: Vec<SceneSpec>,
     /// Image size.
     pub resolution: [u32; 2],
     /// Reference.
@@ -307,12 +309,35 @@ impl Manifest {
             bail!("{}: resolution must be positive, got {}x{}", loc.at(raw.resolution.span()), resolution[0], resolution[1]);
         }
         let res_value = Value::Array(vec![Value::Integer(resolution[0] as i64), Value::Integer(resolution[1] as i64)]);
-        let scene = parse_scene(&raw.scene, &loc, dir)?;
+        let scenes = match raw.scene.get_ref() {
+            Value::Array(list) => {
+                if list.is_empty() {
+                    bail!("{}: scene: empty list", loc.at(raw.scene.span()));
+                }
+                let mut v: Vec<SceneSpec> = Vec::new();
+                for x in list {
+                    let sc = parse_scene(&Spanned::new(raw.scene.span(), x.clone()), &loc, dir)?;
+                    if v.iter().any(|o| o.name() == sc.name()) {
+                        bail!("{}: scene `{}` is listed twice", loc.at(raw.scene.span()), sc.name());
+                    }
+                    v.push(sc);
+                }
+                v
+            }
+            _ => vec![parse_scene(&raw.scene, &loc, dir)?],
+        };
 
         // Reference.
         let reference = {
             let r = raw.reference.get_ref();
             if let Some(f) = r.get("file") {
+                if scenes.len() > 1 {
+                    bail!(
+                        "{}: [reference] file: one reference file cannot serve {} scenes; render the references instead",
+                        loc.at(f.span()),
+                        scenes.len()
+                    );
+                }
                 if let Some((k, v)) = r.iter().find(|(k, _)| k.as_str() != "file") {
                     bail!("{}: [reference] `{k}`: a reference read from `file` takes no render settings", loc.at(v.span()));
                 }
@@ -373,7 +398,7 @@ impl Manifest {
         }
 
         // Build and validate every cell before anything renders.
-        let mut cells = Vec::new();
+        let mut configs = Vec::new();
         let mut stems: BTreeMap<String, usize> = BTreeMap::new();
         let res_layer = vec![("resolution".to_string(), res_value.clone())];
         for (ci, d) in drafts.iter().enumerate() {
@@ -399,20 +424,41 @@ impl Manifest {
             if *n > 1 {
                 stem = format!("{stem}_{ci}");
             }
-            for r in 0..repeats {
-                let mut c = cfg.clone();
-                c.seed = cfg.seed.wrapping_add(r as u64);
-                cells.push(Cell {
-                    index: cells.len(),
-                    config_index: ci,
-                    stem: format!("{stem}_r{r}"),
-                    label: d.label.clone(),
-                    group: d.group.clone(),
-                    values: d.values.clone(),
-                    repeat: r,
-                    config: c,
-                });
+            configs.push((stem, cfg));
+        }
+        // Several scenes: the scene is the outermost axis of every configuration.
+        let multi = scenes.len() > 1;
+        let mut cells = Vec::new();
+        for (si, sc) in scenes.iter().enumerate() {
+            for (di, (d, (stem, cfg))) in drafts.iter().zip(&configs).enumerate() {
+                let (mut label, mut group, mut stem, mut values) = (d.label.clone(), d.group.clone(), stem.clone(), d.values.clone());
+                if multi {
+                    let tag = format!("scene={}", sc.name());
+                    label = if d.values.is_empty() { tag.clone() } else { format!("{tag} {label}") };
+                    group = if d.values.is_empty() || group == "all" { tag.clone() } else { format!("{tag} {group}") };
+                    stem = format!("scene-{}_{stem}", slug(&sc.name()));
+                    values.insert(0, ("scene".into(), Value::String(sc.name())));
+                }
+                for r in 0..repeats {
+                    let mut c = cfg.clone();
+                    c.seed = cfg.seed.wrapping_add(r as u64);
+                    cells.push(Cell {
+                        index: cells.len(),
+                        config_index: si * drafts.len() + di,
+                        scene: si,
+                        stem: format!("{stem}_r{r}"),
+                        label: label.clone(),
+                        group: group.clone(),
+                        values: values.clone(),
+                        repeat: r,
+                        config: c,
+                    });
+                }
             }
+        }
+        let mut axes = axes;
+        if multi {
+            axes.insert(0, "scene".into());
         }
         if cells.is_empty() {
             bail!("{file}: every configuration is excluded: nothing to run");
@@ -423,7 +469,7 @@ impl Manifest {
             name,
             description: raw.description.unwrap_or_default(),
             text: text.to_string(),
-            scene,
+            scenes,
             resolution,
             reference,
             axes,
@@ -632,6 +678,15 @@ fn builtin_exists(name: &str) -> Result<()> {
 }
 
 impl SceneSpec {
+    /// Short name: the built-in's name, the scene file's stem, or `scene`.
+    pub fn name(&self) -> String {
+        match &self.source {
+            SceneSource::Builtin(b) => b.clone(),
+            SceneSource::File(p) => p.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned()),
+            SceneSource::Empty => "scene".into(),
+        }
+    }
+
     /// Checks that every file the scene needs exists (before anything renders).
     pub fn check_files(&self) -> Result<()> {
         if let SceneSource::File(p) = &self.source
@@ -769,6 +824,21 @@ mod tests {
             ReferenceSpec::Render(c) => assert_eq!((c.spp, c.seed), (4, REFERENCE_SEED)),
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn several_scenes_are_the_outer_axis() {
+        let m = parse("scene = [\"cornell\", \"furnace\"]\nresolution = [8, 8]\n[reference]\nspp = 4\n[sweep]\nspp = [1, 2]\n").unwrap();
+        assert_eq!(m.axes, ["scene", "spp"]);
+        assert_eq!(m.cells.len(), 4);
+        assert_eq!(m.cells[2].label, "scene=furnace spp=1");
+        assert_eq!(m.cells[2].group, "scene=furnace");
+        assert_eq!(m.cells[2].stem, "scene-furnace_spp-1_r0");
+        assert_eq!((m.cells[2].scene, m.cells[2].config_index), (1, 2));
+        assert!(
+            format!("{:#}", parse("scene = [\"cornell\", \"cornell\"]\nresolution = [8, 8]\n[reference]\nspp = 4\n").unwrap_err())
+                .contains("twice")
+        );
     }
 
     #[test]

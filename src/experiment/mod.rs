@@ -103,9 +103,22 @@ pub struct RunReport {
 struct RunInfo {
     name: String,
     manifest: PathBuf,
-    reference_key: String,
-    reference: String,
+    /// One per scene, in manifest order.
+    references: Vec<RefInfo>,
     version: String,
+}
+
+/// A scene's reference: cache key, description, image file in the experiment directory.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct RefInfo {
+    /// Scene name.
+    pub scene: String,
+    /// Cache key the cells' errors were measured against.
+    pub key: String,
+    /// How it was made.
+    pub description: String,
+    /// Image file (EXR) relative to the experiment directory; a PNG sits beside it.
+    pub file: String,
 }
 
 /// 64-bit FNV-1a, stable across platforms and compiler versions (cache keys).
@@ -251,31 +264,37 @@ pub fn references_dir(out: &Path) -> PathBuf {
 pub fn run(args: &RunArgs) -> Result<RunReport> {
     let m = Manifest::load(&args.manifest)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("results").join(&m.name));
-    let scene = m.scene.load(m.resolution)?;
+    // Every scene loads (and every model file exists) before anything renders.
+    let scenes = m.scenes.iter().map(|s| s.load(m.resolution)).collect::<Result<Vec<Scene>>>()?;
     if !args.quiet {
-        for w in &scene.warnings {
+        for w in scenes.iter().flat_map(|s| &s.warnings) {
             eprintln!("warning: {w}");
         }
     }
     std::fs::create_dir_all(out.join("cells")).with_context(|| format!("{}: cannot create the output directory", out.display()))?;
-    let (reference, key, ref_desc, reference_rendered) = ensure_reference(&m, &scene, &references_dir(&out), args.quiet)?;
-    // A self-contained experiment directory: merge needs only what is inside it.
-    write_atomic(&out.join("manifest.toml"), m.text.as_bytes())?;
-    let info = RunInfo {
-        name: m.name.clone(),
-        manifest: m.path.clone(),
-        reference_key: key.clone(),
-        reference: ref_desc,
-        version: env!("CARGO_PKG_VERSION").into(),
-    };
-    write_atomic(&out.join("run.json"), serde_json::to_string_pretty(&info)?.as_bytes())?;
-    if Film::read_exr(&out.join("reference.exr")).ok().as_ref() != Some(&reference) {
-        reference.write_exr(&out.join("reference.exr"))?;
-        reference.write_png(&out.join("reference.png"))?;
+    let mut references = Vec::new();
+    let mut infos = Vec::new();
+    let mut reference_rendered = false;
+    for (spec, scene) in m.scenes.iter().zip(&scenes) {
+        let (film, key, description, rendered) = ensure_reference(&m, scene, &references_dir(&out), args.quiet)?;
+        reference_rendered |= rendered;
+        let file = format!("reference-{}.exr", manifest_slug(&spec.name()));
+        // The experiment directory is self-contained: merge needs only what is inside it.
+        if Film::read_exr(&out.join(&file)).ok().as_ref() != Some(&film) {
+            film.write_exr(&out.join(&file))?;
+            film.write_png(&out.join(&file).with_extension("png"))?;
+        }
+        references.push(film);
+        infos.push(RefInfo { scene: spec.name(), key, description, file });
     }
+    write_atomic(&out.join("manifest.toml"), m.text.as_bytes())?;
+    let info =
+        RunInfo { name: m.name.clone(), manifest: m.path.clone(), references: infos.clone(), version: env!("CARGO_PKG_VERSION").into() };
+    write_atomic(&out.join("run.json"), serde_json::to_string_pretty(&info)?.as_bytes())?;
 
     let mine: Vec<&manifest::Cell> = m.cells.iter().filter(|c| args.shard.is_none_or(|s| s.takes(c.index))).collect();
-    let todo: Vec<&manifest::Cell> = mine.iter().copied().filter(|c| args.force || finished(&out, c, &key).is_none()).collect();
+    let todo: Vec<&manifest::Cell> =
+        mine.iter().copied().filter(|c| args.force || finished(&out, c, &infos[c.scene].key).is_none()).collect();
     let kept = mine.len() - todo.len();
     if !args.quiet {
         let shard = args.shard.map_or(String::new(), |s| format!(" (shard {}/{})", s.index, s.count));
@@ -293,7 +312,7 @@ pub fn run(args: &RunArgs) -> Result<RunReport> {
             );
         }
         // The renderer's own bars (photon pass, cache, render) show inside the cell.
-        let rec = pb.suspend(|| run_cell(&scene, c, &reference, &key, &out, args.quiet))?;
+        let rec = pb.suspend(|| run_cell(&scenes[c.scene], c, &references[c.scene], &infos[c.scene].key, &out, args.quiet))?;
         if !args.quiet {
             log(
                 &pb,
@@ -339,7 +358,8 @@ pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
     let mut rows = Vec::new();
     let mut missing = Vec::new();
     for c in &m.cells {
-        match finished(dir, c, &info.reference_key) {
+        let Some(r) = info.references.get(c.scene) else { bail!("{}: run.json lists fewer scenes than the manifest", dir.display()) };
+        match finished(dir, c, &r.key) {
             Some(rec) => rows.push(Row { rec, split: None }),
             None => missing.push(c.stem.clone()),
         }
@@ -357,12 +377,18 @@ pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
     }
     // Bias² / variance per configuration from the repeats' images.
     if m.repeats >= 2 {
-        let reference = Film::read_exr(&dir.join("reference.exr")).context("bias/variance needs the reference image")?;
+        let refs = info
+            .references
+            .iter()
+            .map(|r| Film::read_exr(&dir.join(&r.file)))
+            .collect::<Result<Vec<_>>>()
+            .context("bias/variance needs the reference images")?;
         for ci in 0..m.configurations() {
+            let Some(reference) = m.cells.iter().find(|c| c.config_index == ci).map(|c| &refs[c.scene]) else { continue };
             let idx: Vec<usize> = rows.iter().enumerate().filter(|(_, r)| r.rec.config_index == ci).map(|(i, _)| i).collect();
             let imgs = idx.iter().map(|&i| Film::read_exr(&CellPaths::new(dir, &rows[i].rec.cell).exr)).collect::<Result<Vec<_>>>();
             let split = match imgs {
-                Ok(imgs) => bias_variance(&imgs.iter().collect::<Vec<_>>(), &reference)?,
+                Ok(imgs) => bias_variance(&imgs.iter().collect::<Vec<_>>(), reference)?,
                 Err(e) => {
                     eprintln!("warning: no bias/variance for configuration {ci}: {e:#}");
                     None
@@ -379,7 +405,7 @@ pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
     let plots = plots::make_plots(dir, &m, &stats)?;
     output::write_summary(
         &dir.join("summary.md"),
-        &output::SummaryInfo { manifest: &m, reference: &info.reference, plots: &plots },
+        &output::SummaryInfo { manifest: &m, references: &info.references, plots: &plots },
         &stats,
     )?;
     if !quiet {
