@@ -46,6 +46,7 @@ fn run_into(manifest: &Path, out: &Path, shard: Option<&str>, force: bool) -> Ru
         out: Some(out.to_path_buf()),
         force,
         shard: shard.map(|s| s.parse::<Shard>().unwrap()),
+        reference_only: false,
         quiet: true,
     })
     .unwrap()
@@ -280,9 +281,54 @@ fn shipped_manifests_validate_and_missing_models_are_clear_errors() {
     for f in ["cornell-empty.toml", "cornell-empty.obj", "cornell-empty.mtl"] {
         std::fs::copy(root.join("external/cornell-empty").join(f), d.join("cornell-empty").join(f)).unwrap();
     }
-    let e = run(&RunArgs { manifest: p.clone(), out: Some(d.join("dragon")), force: false, shard: None, quiet: true }).unwrap_err();
+    let e =
+        run(&RunArgs { manifest: p.clone(), out: Some(d.join("dragon")), force: false, shard: None, reference_only: false, quiet: true })
+            .unwrap_err();
     let e = format!("{e:#}");
     assert!(e.starts_with(&p.display().to_string()) && e.contains("not found") && e.contains("download"), "{e}");
     assert!(!d.join("dragon").exists());
+    std::fs::remove_dir_all(d).ok();
+}
+
+#[test]
+fn sigkill_mid_run_then_resume_gives_the_uninterrupted_results() {
+    let d = scratch("kill");
+    let text = TINY.replace("[12, 12]", "[40, 40]").replace("spp = [1, 2]", "spp = [8, 16]");
+    let p = write(&d, "k.toml", &text);
+    // The reference first, alone (as a cluster would before starting the shards).
+    let r =
+        run(&RunArgs { manifest: p.clone(), out: Some(d.join("killed")), force: false, shard: None, reference_only: true, quiet: true })
+            .unwrap();
+    assert!(r.reference_rendered && r.ran == 0 && !d.join("killed/cells.csv").exists());
+    // A real process killed with SIGKILL as soon as its first cell is recorded.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_photonlab"))
+        .args(["run", p.to_str().unwrap(), "--quiet", "--out", d.join("killed").to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let cells = d.join("killed/cells");
+    let recorded = || {
+        std::fs::read_dir(&cells)
+            .map(|r| r.filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "json")).count())
+            .unwrap_or(0)
+    };
+    let start = std::time::Instant::now();
+    while recorded() == 0 && start.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap(); // SIGKILL on Unix
+    child.wait().unwrap();
+    // However far it got, resuming must give exactly the results of a run that was
+    // never interrupted (in another directory).
+    let r = run_into(&p, &d.join("killed"), None, false);
+    assert!(r.kept >= 1 && r.ran + r.kept == 8 && !r.reference_rendered, "{r:?}");
+    run_into(&p, &d.join("whole"), None, false);
+    let (h1, r1) = read_csv(&d.join("killed"));
+    let (h2, r2) = read_csv(&d.join("whole"));
+    assert_eq!(r1.len(), 8);
+    for (cell, row) in &r1 {
+        assert_eq!(stable(&h1, row), stable(&h2, &r2[cell]), "{cell}");
+    }
     std::fs::remove_dir_all(d).ok();
 }

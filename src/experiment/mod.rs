@@ -42,6 +42,10 @@ pub struct RunArgs {
     /// Run only shard I of N (1-based): the cells whose index is I−1 modulo N.
     #[arg(long)]
     pub shard: Option<Shard>,
+    /// Only make sure the references exist (rendered and cached), then stop: lets a
+    /// cluster render them once before the shards start.
+    #[arg(long)]
+    pub reference_only: bool,
     /// No progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -291,6 +295,9 @@ pub fn run(args: &RunArgs) -> Result<RunReport> {
     let info =
         RunInfo { name: m.name.clone(), manifest: m.path.clone(), references: infos.clone(), version: env!("CARGO_PKG_VERSION").into() };
     write_atomic(&out.join("run.json"), serde_json::to_string_pretty(&info)?.as_bytes())?;
+    if args.reference_only {
+        return Ok(RunReport { dir: out, reference_rendered, ..Default::default() });
+    }
 
     let mine: Vec<&manifest::Cell> = m.cells.iter().filter(|c| args.shard.is_none_or(|s| s.takes(c.index))).collect();
     let todo: Vec<&manifest::Cell> =
