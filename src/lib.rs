@@ -7,6 +7,7 @@ pub mod bench;
 pub mod camera;
 pub mod cli;
 pub mod config;
+pub mod experiment;
 pub mod film;
 pub mod gather;
 pub mod geometry;
