@@ -13,7 +13,7 @@ use glam::Vec3;
 
 const BINS: usize = 16;
 /// The binary tree's leaf size and SAH node-visit cost (relative to a triangle test).
-const BINARY_PARAMS: BuildParams = BuildParams { max_leaf: 8, traversal_cost: 1.0 };
+const BINARY_PARAMS: BuildParams = BuildParams { max_leaf: 8, traversal_cost: 1.0, block: 1 };
 /// Build depth beyond which nodes are split by count (keeps the depth, and so the
 /// traversal stack, bounded: 64 + log2(2^32) < STACK).
 const MAX_SAH_DEPTH: usize = 64;
@@ -53,6 +53,16 @@ pub(crate) struct BuildParams {
     pub max_leaf: usize,
     /// Cost of a node visit relative to a triangle test.
     pub traversal_cost: f32,
+    /// Triangles tested together (a leaf of n costs ⌈n / block⌉ tests), so that
+    /// leaves of a SIMD-tested tree fill their blocks.
+    pub block: usize,
+}
+
+impl BuildParams {
+    #[inline]
+    fn leaf_cost(&self, n: usize) -> f32 {
+        n.div_ceil(self.block) as f32
+    }
 }
 
 /// Builds the binary SAH tree over `tris`; returns it with the triangle order its
@@ -130,14 +140,14 @@ fn build_rec(prims: &mut [Prim], offset: usize, depth: usize, params: &BuildPara
             if cnt == 0 || right_count[i + 1] == 0 {
                 continue;
             }
-            let cost = acc.area() * cnt as f32 + right_area[i + 1] * right_count[i + 1] as f32;
+            let cost = acc.area() * params.leaf_cost(cnt) + right_area[i + 1] * params.leaf_cost(right_count[i + 1]);
             if best.is_none_or(|b| cost < b.2) {
                 best = Some((axis, i, cost));
             }
         }
     }
     let parent_area = bounds.area().max(f32::MIN_POSITIVE);
-    let leaf_cost = n as f32;
+    let leaf_cost = params.leaf_cost(n);
     let split = best
         .filter(|_| depth < MAX_SAH_DEPTH)
         .filter(|&(_, _, cost)| n > params.max_leaf || params.traversal_cost + cost / parent_area < leaf_cost);

@@ -347,10 +347,12 @@ impl<const N: usize> WideBvh<N> {
         assert!(N == 4 || N == 8, "wide BVH supports 4 or 8 children");
         const { assert!(MAX_LEAF <= 4, "a leaf must fit one triangle block") };
         let simd = detect_simd();
-        let Some((root, order)) = build_tree(tris, BuildParams { max_leaf: MAX_LEAF, traversal_cost: TRAVERSAL_COST }) else {
+        let Some((root, order)) = build_tree(tris, BuildParams { max_leaf: MAX_LEAF, traversal_cost: TRAVERSAL_COST, block: 4 }) else {
             return WideBvh { nodes: Vec::new(), blocks: Vec::new(), depth: 0, simd };
         };
-        let mut out = Collapse::<N> { nodes: Vec::new(), blocks: Vec::new(), order: &order, tris, depth: 0 };
+        // Upper bounds (a leaf holds at least one triangle, a node at least two
+        // children), reserved up front so the huge-page hint covers the final arrays.
+        let mut out = Collapse::<N> { nodes: huge_vec(order.len()), blocks: huge_vec(order.len()), order: &order, tris, depth: 0 };
         let r = collapse::<N>(&root, &mut out, 1);
         if r & LEAF != 0 {
             // A single leaf: give it a root node.
@@ -511,6 +513,31 @@ impl<const N: usize> WideBvh<N> {
     fn occluded_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
         self.occluded_impl::<true>(ray, t_max, stats)
     }
+}
+
+/// An empty vector with room for `cap` items whose pages the kernel is asked to back
+/// with 2 MiB huge pages (Linux transparent huge pages in `madvise` mode). Incoherent
+/// rays on a million-triangle tree touch a new 4 KiB page at almost every node, so
+/// without this most node fetches also miss the TLB. The hint is advisory: nothing
+/// changes where it is ignored. Untouched capacity costs address space only.
+fn huge_vec<T>(cap: usize) -> Vec<T> {
+    let v: Vec<T> = Vec::with_capacity(cap);
+    #[cfg(target_os = "linux")]
+    {
+        let bytes = cap * std::mem::size_of::<T>();
+        const HUGE: usize = 2 << 20;
+        if bytes >= 2 * HUGE {
+            // Only whole huge pages inside the allocation.
+            let start = (v.as_ptr() as usize).next_multiple_of(HUGE);
+            let end = (v.as_ptr() as usize + bytes) & !(HUGE - 1);
+            if end > start {
+                // SAFETY: the range lies inside this vector's allocation, which nothing
+                // has touched yet; MADV_HUGEPAGE only changes how pages are backed.
+                unsafe { libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE) };
+            }
+        }
+    }
+    v
 }
 
 /// True when the AVX2 traversal can run on this CPU.

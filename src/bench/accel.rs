@@ -509,12 +509,12 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
 /// Prints rows as an aligned table.
 pub fn print_table(rows: &[BenchRow]) {
     println!(
-        "{:<24} {:<18} {:<8} {:>3} {:>9} {:>8} {:>9} {:>8} {:>8} {:>8}",
-        "scene", "engine", "rays", "thr", "Mrays/s", "hit", "n_rays", "nodes/r", "tris/r", "build_s"
+        "{:<24} {:<18} {:<8} {:>3} {:>9} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
+        "scene", "engine", "rays", "thr", "Mrays/s", "hit", "n_rays", "nodes/r", "tris/r", "build_s", "MB"
     );
     for r in rows {
         println!(
-            "{:<24} {:<18} {:<8} {:>3} {:>9.3} {:>8.4} {:>9} {:>8.1} {:>8.2} {:>8.3}",
+            "{:<24} {:<18} {:<8} {:>3} {:>9.3} {:>8.4} {:>9} {:>8.1} {:>8.2} {:>8.3} {:>7.1}",
             r.scene,
             r.engine,
             r.rays,
@@ -524,7 +524,8 @@ pub fn print_table(rows: &[BenchRow]) {
             r.n_rays,
             r.node_tests_per_ray,
             r.tri_tests_per_ray,
-            r.build_s
+            r.build_s,
+            r.memory_bytes as f64 / 1e6
         );
     }
 }

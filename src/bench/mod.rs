@@ -2,6 +2,7 @@
 //! side by side in one run).
 
 pub mod accel;
+pub mod embree;
 
 use anyhow::Result;
 use clap::Subcommand;
@@ -11,11 +12,14 @@ use clap::Subcommand;
 pub enum BenchCommand {
     /// Acceleration-structure build and ray throughput on the Embree harness's ray sets.
     Accel(accel::AccelArgs),
+    /// Embree harness vs photonlab on the same OBJs and ray sets: ratio per row.
+    EmbreeCompare(embree::EmbreeArgs),
 }
 
 /// Runs a benchmark.
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Accel(a) => accel::run(&a),
+        BenchCommand::EmbreeCompare(a) => embree::run(&a),
     }
 }
