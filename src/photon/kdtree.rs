@@ -198,18 +198,49 @@ fn split_at_median(e: &mut [(u64, u32)], axis: usize, m: usize) {
     let r = m - below_hi - below_lo;
     let (_, &mut pivot_index, _) = at_v.select_nth_unstable(r);
     let pivot = ((v as u64) << 32) | pivot_index as u64;
-    // One order-preserving pass; the pivot (the largest on the left) then moves to m.
-    let (mut left, right): (Vec<_>, Vec<_>) = e.par_iter().partition(|x| key(x) <= pivot);
-    if left.len() == m + 1
-        && let Some(at) = left.par_iter().position_first(|x| key(x) == pivot)
+    // Order-preserving parallel partition; the pivot (the largest on the left) then
+    // moves to m.
+    if par_partition(e, |x| key(x) <= pivot) == m + 1
+        && let Some(at) = e[..=m].par_iter().position_first(|x| key(x) == pivot)
     {
-        left.swap(at, m);
-        e[..=m].copy_from_slice(&left);
-        e[m + 1..].copy_from_slice(&right);
+        e.swap(at, m);
     } else {
         // Unreachable (the ranks add up); fall back to the serial selection.
         e.select_nth_unstable_by_key(m, key);
     }
+}
+
+/// Moves the entries satisfying `pred` to the front, keeping the order on both sides
+/// (so the result is unique), with every pass parallel: per-chunk counts, a scatter
+/// of each chunk into its precomputed slots, a copy back. Returns the front's size.
+fn par_partition(e: &mut [(u64, u32)], pred: impl Fn(&(u64, u32)) -> bool + Sync) -> usize {
+    const CH: usize = 1 << 14;
+    let counts: Vec<usize> = e.par_chunks(CH).map(|c| c.iter().filter(|x| pred(x)).count()).collect();
+    let front: usize = counts.iter().sum();
+    let mut out = vec![(0u64, 0u32); e.len()];
+    let (mut l, mut r) = out.split_at_mut(front);
+    let mut slots = Vec::with_capacity(counts.len());
+    for (ci, &c) in counts.iter().enumerate() {
+        let len = CH.min(e.len() - ci * CH);
+        let (a, rest_l) = std::mem::take(&mut l).split_at_mut(c);
+        let (b, rest_r) = std::mem::take(&mut r).split_at_mut(len - c);
+        (l, r) = (rest_l, rest_r);
+        slots.push((a, b));
+    }
+    e.par_chunks(CH).zip(slots.into_par_iter()).for_each(|(src, (a, b))| {
+        let (mut i, mut j) = (0, 0);
+        for x in src {
+            if pred(x) {
+                a[i] = *x;
+                i += 1;
+            } else {
+                b[j] = *x;
+                j += 1;
+            }
+        }
+    });
+    e.par_chunks_mut(CH).zip(out.par_chunks(CH)).for_each(|(d, s)| d.copy_from_slice(s));
+    front
 }
 
 fn build_rec(e: &mut [(u64, u32)]) {
@@ -279,8 +310,13 @@ impl<T: Copy + Send + Sync> KdTree<T> {
 
     /// A tree over the points of several trees (positions as stored in each).
     pub fn merged(trees: &[&KdTree<T>]) -> Self {
-        let pos: Vec<Vec3> = trees.iter().flat_map(|t| t.keys.par_iter().map(|&k| t.decode(k)).collect::<Vec<_>>()).collect();
-        let items = trees.iter().flat_map(|t| t.points.iter().copied()).collect();
+        let total = trees.iter().map(|t| t.len()).sum();
+        // Indexed parallel extends write in place: no serial concatenation.
+        let (mut pos, mut items) = (Vec::with_capacity(total), Vec::with_capacity(total));
+        for t in trees {
+            pos.par_extend(t.keys.par_iter().map(|&k| t.decode(k)));
+            items.par_extend(t.points.par_iter().copied());
+        }
         Self::build_with(&pos, items)
     }
 }
