@@ -23,4 +23,5 @@ pub mod render;
 pub mod rr;
 pub mod sampler;
 pub mod scene;
+pub mod stats;
 pub mod world;

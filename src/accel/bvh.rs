@@ -12,9 +12,8 @@ use crate::geometry::{Aabb, Hit, Ray, intersect_triangle};
 use glam::Vec3;
 
 const BINS: usize = 16;
-const MAX_LEAF: usize = 8;
-/// Relative cost of a node visit versus a triangle test in the SAH.
-const TRAVERSAL_COST: f32 = 1.0;
+/// The binary tree's leaf size and SAH node-visit cost (relative to a triangle test).
+const BINARY_PARAMS: BuildParams = BuildParams { max_leaf: 8, traversal_cost: 1.0, block: 1 };
 /// Build depth beyond which nodes are split by count (keeps the depth, and so the
 /// traversal stack, bounded: 64 + log2(2^32) < STACK).
 const MAX_SAH_DEPTH: usize = 64;
@@ -31,9 +30,57 @@ struct Node {
     count: u32,
 }
 
-enum BuildNode {
+/// Binary build tree (also collapsed into the wide trees of `bvh4`/`bvh8`). Leaves
+/// index the primitive order returned by [`build_tree`].
+pub(crate) enum BuildNode {
     Leaf { bounds: Aabb, first: usize, count: usize },
     Interior { bounds: Aabb, children: Box<[BuildNode; 2]> },
+}
+
+impl BuildNode {
+    /// The node's box.
+    pub(crate) fn bounds(&self) -> &Aabb {
+        match self {
+            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds,
+        }
+    }
+}
+
+/// Leaf-size limit and SAH node cost of a build.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BuildParams {
+    /// Largest leaf (larger sets are always split).
+    pub max_leaf: usize,
+    /// Cost of a node visit relative to a triangle test.
+    pub traversal_cost: f32,
+    /// Triangles tested together (a leaf of n costs ⌈n / block⌉ tests), so that
+    /// leaves of a SIMD-tested tree fill their blocks.
+    pub block: usize,
+}
+
+impl BuildParams {
+    #[inline]
+    fn leaf_cost(&self, n: usize) -> f32 {
+        n.div_ceil(self.block) as f32
+    }
+}
+
+/// Builds the binary SAH tree over `tris`; returns it with the triangle order its
+/// leaves index (None for an empty list).
+pub(crate) fn build_tree(tris: &[[Vec3; 3]], params: BuildParams) -> Option<(BuildNode, Vec<u32>)> {
+    let mut prims: Vec<Prim> = tris
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let bounds = Aabb::of_triangle(t);
+            Prim { bounds, centroid: bounds.center(), index: i as u32 }
+        })
+        .collect();
+    if prims.is_empty() {
+        return None;
+    }
+    let root = build_rec(&mut prims, 0, 0, &params);
+    Some((root, prims.iter().map(|p| p.index).collect()))
 }
 
 /// Binary BVH.
@@ -49,7 +96,7 @@ struct Prim {
     index: u32,
 }
 
-fn build_rec(prims: &mut [Prim], offset: usize, depth: usize) -> BuildNode {
+fn build_rec(prims: &mut [Prim], offset: usize, depth: usize, params: &BuildParams) -> BuildNode {
     let mut bounds = Aabb::EMPTY;
     let mut cb = Aabb::EMPTY;
     for p in prims.iter() {
@@ -93,16 +140,17 @@ fn build_rec(prims: &mut [Prim], offset: usize, depth: usize) -> BuildNode {
             if cnt == 0 || right_count[i + 1] == 0 {
                 continue;
             }
-            let cost = acc.area() * cnt as f32 + right_area[i + 1] * right_count[i + 1] as f32;
+            let cost = acc.area() * params.leaf_cost(cnt) + right_area[i + 1] * params.leaf_cost(right_count[i + 1]);
             if best.is_none_or(|b| cost < b.2) {
                 best = Some((axis, i, cost));
             }
         }
     }
     let parent_area = bounds.area().max(f32::MIN_POSITIVE);
-    let leaf_cost = n as f32;
-    let split =
-        best.filter(|_| depth < MAX_SAH_DEPTH).filter(|&(_, _, cost)| n > MAX_LEAF || TRAVERSAL_COST + cost / parent_area < leaf_cost);
+    let leaf_cost = params.leaf_cost(n);
+    let split = best
+        .filter(|_| depth < MAX_SAH_DEPTH)
+        .filter(|&(_, _, cost)| n > params.max_leaf || params.traversal_cost + cost / parent_area < leaf_cost);
     let mid = match split {
         Some((axis, bin, _)) => {
             let k = BINS as f32 / ext[axis];
@@ -119,15 +167,15 @@ fn build_rec(prims: &mut [Prim], offset: usize, depth: usize) -> BuildNode {
             }
             i
         }
-        None if n <= MAX_LEAF => return BuildNode::Leaf { bounds, first: offset, count: n },
+        None if n <= params.max_leaf => return BuildNode::Leaf { bounds, first: offset, count: n },
         // All centroids coincide (or no valid split): split by count.
         None => n / 2,
     };
     let (l, r) = prims.split_at_mut(mid);
     let (a, b) = if n > 4096 {
-        rayon::join(|| build_rec(l, offset, depth + 1), || build_rec(r, offset + mid, depth + 1))
+        rayon::join(|| build_rec(l, offset, depth + 1, params), || build_rec(r, offset + mid, depth + 1, params))
     } else {
-        (build_rec(l, offset, depth + 1), build_rec(r, offset + mid, depth + 1))
+        (build_rec(l, offset, depth + 1, params), build_rec(r, offset + mid, depth + 1, params))
     };
     BuildNode::Interior { bounds, children: Box::new([a, b]) }
 }
@@ -150,22 +198,12 @@ fn flatten(node: &BuildNode, nodes: &mut Vec<Node>) {
 impl Bvh {
     /// Builds the hierarchy over `tris`.
     pub fn build(tris: &[[Vec3; 3]]) -> Self {
-        let mut prims: Vec<Prim> = tris
-            .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let bounds = Aabb::of_triangle(t);
-                Prim { bounds, centroid: bounds.center(), index: i as u32 }
-            })
-            .collect();
-        if prims.is_empty() {
+        let Some((root, tri_index)) = build_tree(tris, BINARY_PARAMS) else {
             return Bvh { nodes: Vec::new(), tris: Vec::new(), tri_index: Vec::new() };
-        }
-        let root = build_rec(&mut prims, 0, 0);
-        let mut nodes = Vec::with_capacity(2 * prims.len() / 2 + 1);
+        };
+        let mut nodes = Vec::with_capacity(2 * tri_index.len() / 2 + 1);
         flatten(&root, &mut nodes);
         drop(root);
-        let tri_index: Vec<u32> = prims.iter().map(|p| p.index).collect();
         let tris = tri_index.iter().map(|&i| PreTriangle::new(&tris[i as usize])).collect();
         Bvh { nodes, tris, tri_index }
     }
@@ -339,38 +377,50 @@ mod tests {
         tris
     }
 
+    /// Every accelerator returns the closest hit of brute force (same triangle, same
+    /// distance) and the same shadow-ray answer, on rays from inside and outside.
     #[test]
-    fn bvh_equals_linear_on_random_rays() {
+    fn accels_equal_linear_on_random_rays() {
         let tris = test_mesh();
         let lin = Linear::build(&tris);
-        let bvh = Bvh::build(&tris);
-        let (mut s1, mut s2) = (TraversalStats::default(), TraversalStats::default());
-        let n = 100_000u64;
-        let mut hits = 0;
-        for k in 0..n {
-            let o = uniform_sphere([unit(hash_words(&[k, 3])), unit(hash_words(&[k, 4]))]) * (0.2 + 1.5 * unit(hash_words(&[k, 5])));
-            let d = uniform_sphere([unit(hash_words(&[k, 6])), unit(hash_words(&[k, 7]))]);
-            let ray = Ray::new(o, d);
-            let a = lin.intersect(&ray, f32::INFINITY, &mut s1);
-            let b = bvh.intersect(&ray, f32::INFINITY, &mut s2);
-            match (a, b) {
-                (None, None) => {}
-                (Some(a), Some(b)) => {
-                    hits += 1;
-                    assert!((a.t - b.t).abs() <= 1e-5 * a.t.max(1e-3), "ray {k}: {a:?} vs {b:?}");
-                    // Same triangle unless two triangles are hit at the same distance (shared edge).
-                    if a.tri != b.tri {
-                        assert!(a.t == b.t, "ray {k}: {a:?} vs {b:?}");
+        for name in crate::registry::ACCELS.iter().filter(|n| **n != "none") {
+            let acc = crate::registry::make_accel(name, &tris).unwrap();
+            let (mut s1, mut s2) = (TraversalStats::default(), TraversalStats::default());
+            let n = 100_000u64;
+            let (mut hits, mut occluded) = (0, 0);
+            for k in 0..n {
+                let o = uniform_sphere([unit(hash_words(&[k, 3])), unit(hash_words(&[k, 4]))]) * (0.2 + 1.5 * unit(hash_words(&[k, 5])));
+                let d = uniform_sphere([unit(hash_words(&[k, 6])), unit(hash_words(&[k, 7]))]);
+                let ray = Ray::new(o, d);
+                let a = lin.intersect(&ray, f32::INFINITY, &mut s1);
+                let b = acc.intersect(&ray, f32::INFINITY, &mut s2);
+                match (a, b) {
+                    (None, None) => {}
+                    (Some(a), Some(b)) => {
+                        hits += 1;
+                        assert!((a.t - b.t).abs() <= 1e-5 * a.t.max(1e-3), "{name} ray {k}: {a:?} vs {b:?}");
+                        // Same triangle unless two triangles are hit at the same distance (shared edge).
+                        if a.tri != b.tri {
+                            assert!(a.t == b.t, "{name} ray {k}: {a:?} vs {b:?}");
+                        }
                     }
+                    _ => panic!("{name} ray {k}: linear {a:?} {name} {b:?}"),
                 }
-                _ => panic!("ray {k}: linear {a:?} bvh {b:?}"),
+                // Shadow rays ending before, beyond, or just short of the closest hit.
+                let tm = match (a, k % 3) {
+                    (None, _) => 3.0,
+                    (Some(h), 0) => h.t * 1.5,
+                    (Some(h), 1) => h.t * 0.999,
+                    (Some(h), _) => h.t * 0.5,
+                };
+                let occ = lin.occluded(&ray, tm, &mut s1);
+                occluded += occ as u32;
+                assert_eq!(occ, acc.occluded(&ray, tm, &mut s2), "{name} shadow ray {k}");
             }
-            let tm = a.map_or(3.0, |h| h.t * 1.5);
-            assert_eq!(lin.occluded(&ray, tm, &mut s1), bvh.occluded(&ray, tm, &mut s2), "shadow ray {k}");
+            assert!(hits > n / 2 && occluded > n as u32 / 10 && u64::from(occluded) < hits, "{name}: {hits} hits, {occluded} occluded");
+            assert_eq!(s1.rays, s2.rays);
+            assert!(s2.tri_tests * 10 < s1.tri_tests, "{name} should test far fewer triangles");
         }
-        assert!(hits > n / 2);
-        assert_eq!(s1.rays, s2.rays);
-        assert!(s2.tri_tests * 10 < s1.tri_tests, "bvh should test far fewer triangles");
     }
 
     #[test]

@@ -1,9 +1,12 @@
-//! Ray-scene intersection structures (plug-ins chosen by name: `none`, `bvh`).
+//! Ray-scene intersection structures (plug-ins chosen by name: `none`, `bvh`,
+//! `bvh4`, `bvh8`).
 //!
 //! Every implementation uses [`crate::geometry::intersect_triangle`] on the same
 //! precomputed (v0, e1, e2) data, so all return the same closest hit.
 
 pub mod bvh;
+pub mod bvh4;
+pub mod bvh8;
 pub mod linear;
 
 use crate::geometry::{Hit, Ray};

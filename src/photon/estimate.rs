@@ -98,7 +98,7 @@ pub fn facing_normal(it: &Interaction, wo: Vec3) -> Vec3 {
 pub fn gather(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32 {
     let thick = prm.disc * prm.max_radius;
     let cos = prm.normal_cos;
-    let filter = |ph: &Photon| ph.normal().dot(n) >= cos && (ph.position() - p).dot(n).abs() <= thick;
+    let filter = |ph: &Photon, q: Vec3| ph.normal().dot(n) >= cos && (q - p).dot(n).abs() <= thick;
     map.knn(p, prm.k, prm.max_radius * prm.max_radius, heap, &filter)
 }
 

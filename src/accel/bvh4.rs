@@ -1,0 +1,646 @@
+//! `bvh4` and `bvh8`: wide bounding volume hierarchies (4 or 8 children per node).
+//!
+//! Build: the binary SAH tree of [`super::bvh`] (leaves of up to [`MAX_LEAF`]
+//! triangles), collapsed top-down: a node adopts its two children, then repeatedly
+//! replaces the interior child with the largest surface area by that child's two
+//! children until it has N (Wald et al. 2008). Nodes are laid out depth-first.
+//!
+//! Node layout: child boxes as structure-of-arrays (`lo[axis][lane]`,
+//! `hi[axis][lane]`), so one node test checks all N boxes in a few vector
+//! instructions; the loops over lanes are written for LLVM's vectoriser and the whole
+//! traversal is compiled twice, once for AVX2 (chosen at run time) and once for the
+//! x86-64 baseline. Empty slots hold an inverted box, which no ray enters.
+//!
+//! Traversal: the near plane of each axis is chosen by the ray's direction sign once
+//! per ray; box distances use the robust slab test of Ize (2013), the far distance
+//! widened by 1 + 2γ₃, so rounding never culls a box that a triangle hit lies in.
+//! Children are visited nearest first; stacked entries keep their entry distance and
+//! are dropped on pop when a closer hit has been found. Shadow rays return at the
+//! first hit. Each leaf is one block of up to four triangles tested together by a
+//! lane-wise copy of [`crate::geometry::intersect_triangle`] (same operations, same
+//! order, so hits agree bit for bit with the other accelerators).
+
+use super::bvh::{BuildNode, BuildParams, build_tree};
+use super::{Accel, PreTriangle, TraversalStats};
+use crate::geometry::{Hit, Ray};
+use glam::Vec3;
+use std::mem::MaybeUninit;
+
+/// Largest leaf of the underlying binary build.
+pub const MAX_LEAF: usize = 4;
+/// SAH node-visit cost of the underlying binary build, relative to a triangle test.
+const TRAVERSAL_COST: f32 = 1.0;
+/// Marks a child reference as a leaf: `LEAF | block << 2 | (count − 1)`.
+const LEAF: u32 = 1 << 31;
+/// Unused child slot (its box is inverted, so it is never entered).
+const EMPTY: u32 = u32::MAX;
+/// Far-distance widening of the robust slab test: 1 + 2γ₃ with γₙ = nε/(1 − nε).
+const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+/// Binary depth is at most 64 SAH levels + 32 count splits; each wide level pushes at
+/// most N − 1 entries.
+const MAX_DEPTH: usize = 96;
+
+/// A wide node: N child boxes (SoA) and child references.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Node<const N: usize> {
+    lo: [[f32; N]; 3],
+    hi: [[f32; N]; 3],
+    child: [u32; N],
+}
+
+impl<const N: usize> Node<N> {
+    fn empty() -> Self {
+        Node { lo: [[f32::INFINITY; N]; 3], hi: [[f32::NEG_INFINITY; N]; 3], child: [EMPTY; N] }
+    }
+}
+
+/// Up to four triangles of one leaf as structure-of-arrays (v0, e1 = v1 − v0,
+/// e2 = v2 − v0 per axis and lane) with their scene indices; unused lanes hold a
+/// zero-area triangle, which the test rejects (det = 0).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+struct TriBlock {
+    v0: [[f32; 4]; 3],
+    e1: [[f32; 4]; 3],
+    e2: [[f32; 4]; 3],
+    id: [u32; 4],
+}
+
+impl TriBlock {
+    fn new(tris: &[[Vec3; 3]], ids: &[u32]) -> Self {
+        let mut b = TriBlock { v0: [[0.0; 4]; 3], e1: [[0.0; 4]; 3], e2: [[0.0; 4]; 3], id: [u32::MAX; 4] };
+        for (lane, &i) in ids.iter().enumerate() {
+            let t = PreTriangle::new(&tris[i as usize]);
+            for a in 0..3 {
+                b.v0[a][lane] = t.v0[a];
+                b.e1[a][lane] = t.e1[a];
+                b.e2[a][lane] = t.e2[a];
+            }
+            b.id[lane] = i;
+        }
+        b
+    }
+
+    /// [`intersect_triangle`] on the four lanes at once, with the same operations in
+    /// the same order (so the same bits); returns the lanes hit with 0 < t < t_max
+    /// and their (t, b1, b2).
+    // The negated comparisons reproduce the scalar test's NaN behaviour exactly, and
+    // plain `&` of comparisons keeps the lane loop branch-free for the vectoriser.
+    #[allow(clippy::neg_cmp_op_on_partial_ord, clippy::manual_range_contains)]
+    #[inline(always)]
+    fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> (u32, [f32; 4], [f32; 4], [f32; 4]) {
+        let (mut tt, mut uu, mut vv) = ([0.0f32; 4], [0.0f32; 4], [0.0f32; 4]);
+        let mut ok = [false; 4];
+        let [v0x, v0y, v0z] = &self.v0;
+        let [e1x, e1y, e1z] = &self.e1;
+        let [e2x, e2y, e2z] = &self.e2;
+        for i in 0..4 {
+            // pvec = d × e2, det = e1 · pvec
+            let px = d.y * e2z[i] - e2y[i] * d.z;
+            let py = d.z * e2x[i] - e2z[i] * d.x;
+            let pz = d.x * e2y[i] - e2x[i] * d.y;
+            let det = e1x[i] * px + e1y[i] * py + e1z[i] * pz;
+            let inv = 1.0 / det;
+            // tvec = o − v0, u = tvec · pvec / det
+            let tx = o.x - v0x[i];
+            let ty = o.y - v0y[i];
+            let tz = o.z - v0z[i];
+            let u = (tx * px + ty * py + tz * pz) * inv;
+            // qvec = tvec × e1
+            let qx = ty * e1z[i] - e1y[i] * tz;
+            let qy = tz * e1x[i] - e1z[i] * tx;
+            let qz = tx * e1y[i] - e1x[i] * ty;
+            let v = (d.x * qx + d.y * qy + d.z * qz) * inv;
+            let t = (e2x[i] * qx + e2y[i] * qy + e2z[i] * qz) * inv;
+            let det_ok = det != 0.0 && det.abs() < f32::INFINITY;
+            ok[i] = det_ok & (u >= 0.0) & (u <= 1.0) & !(v < 0.0) & !(u + v > 1.0) & (t > 0.0) & (t < t_max);
+            tt[i] = t;
+            uu[i] = u;
+            vv[i] = v;
+        }
+        let mut mask = 0u32;
+        for (i, h) in ok.iter().enumerate() {
+            mask |= (*h as u32) << i;
+        }
+        (mask, tt, uu, vv)
+    }
+}
+
+/// Wide BVH with N children per node (4 or 8).
+pub struct WideBvh<const N: usize> {
+    nodes: Vec<Node<N>>,
+    blocks: Vec<TriBlock>,
+    depth: usize,
+    /// AVX2 traversal chosen at build time (runtime CPU detection).
+    simd: bool,
+}
+
+/// 4-wide BVH (`bvh4`).
+pub type Bvh4 = WideBvh<4>;
+
+/// Per-ray values every node test reuses.
+struct RayPre {
+    o: [f32; 3],
+    inv: [f32; 3],
+    /// Per axis: the near plane is the box maximum (direction negative).
+    neg: [bool; 3],
+}
+
+impl RayPre {
+    #[inline(always)]
+    fn new(ray: &Ray) -> Self {
+        let inv = ray.d.recip().to_array();
+        RayPre { o: ray.o.to_array(), inv, neg: [inv[0] < 0.0, inv[1] < 0.0, inv[2] < 0.0] }
+    }
+}
+
+/// Tests the ray against all N child boxes; returns the hit mask and entry distances.
+///
+/// A zero direction component makes the inverse ±∞ and a slab plane through the
+/// origin gives 0·∞ = NaN; every fold below keeps its accumulator when the new value
+/// is NaN (`x < acc` is false), so that axis is ignored, as it should be for a ray
+/// lying in the slab. Compiled as plain compare-and-select, each fold is one
+/// `minps`/`maxps`.
+#[inline(always)]
+fn node_test<const N: usize, const AVX: bool>(n: &Node<N>, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> u32 {
+    let pick = |a: usize| if r.neg[a] { (&n.hi[a], &n.lo[a]) } else { (&n.lo[a], &n.hi[a]) };
+    let (nx, fx) = pick(0);
+    let (ny, fy) = pick(1);
+    let (nz, fz) = pick(2);
+    #[cfg(target_arch = "x86_64")]
+    {
+        let planes = [nx.as_ptr(), ny.as_ptr(), nz.as_ptr(), fx.as_ptr(), fy.as_ptr(), fz.as_ptr()];
+        if N == 8 && AVX {
+            // SAFETY: AVX is true only inside the AVX2 traversal (CPU checked at build),
+            // and every plane array holds N = 8 floats, as does `tmin`.
+            return unsafe { x86::node_test8(&planes, r, t_max, tmin.as_mut_ptr()) };
+        }
+        if N == 4 {
+            // SAFETY: SSE is part of x86-64; every plane array holds N = 4 floats.
+            return unsafe { x86::node_test4(&planes, r, t_max, tmin.as_mut_ptr()) };
+        }
+    }
+    let mut hit = [false; N];
+    for i in 0..N {
+        let tnx = (nx[i] - r.o[0]) * r.inv[0];
+        let tny = (ny[i] - r.o[1]) * r.inv[1];
+        let tnz = (nz[i] - r.o[2]) * r.inv[2];
+        let tfx = (fx[i] - r.o[0]) * r.inv[0];
+        let tfy = (fy[i] - r.o[1]) * r.inv[1];
+        let tfz = (fz[i] - r.o[2]) * r.inv[2];
+        let mut t0 = 0.0f32;
+        t0 = if tnx > t0 { tnx } else { t0 };
+        t0 = if tny > t0 { tny } else { t0 };
+        t0 = if tnz > t0 { tnz } else { t0 };
+        let mut t1 = t_max;
+        t1 = if tfx < t1 { tfx } else { t1 };
+        t1 = if tfy < t1 { tfy } else { t1 };
+        t1 = if tfz < t1 { tfz } else { t1 };
+        tmin[i] = t0;
+        hit[i] = t0 <= t1 * ROBUST;
+    }
+    let mut mask = 0u32;
+    for (i, h) in hit.iter().enumerate() {
+        mask |= (*h as u32) << i;
+    }
+    mask
+}
+
+/// The node test with explicit vector instructions: the lane loop above compiles to
+/// the same arithmetic, but LLVM turns its hit mask into a chain of packs instead of
+/// one `movmskps`, which cost ~15 % of the traversal.
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use super::{ROBUST, RayPre};
+    use std::arch::x86_64::*;
+
+    /// 8 lanes with AVX. Safety: the CPU must support AVX; `planes` (near x, y, z, far
+    /// x, y, z) and `tmin` must point to 8 floats each.
+    #[inline(always)]
+    pub(super) unsafe fn node_test8(planes: &[*const f32; 6], r: &RayPre, t_max: f32, tmin: *mut f32) -> u32 {
+        unsafe {
+            let mut t0 = _mm256_setzero_ps();
+            let mut t1 = _mm256_set1_ps(t_max);
+            for a in 0..3 {
+                let o = _mm256_set1_ps(r.o[a]);
+                let inv = _mm256_set1_ps(r.inv[a]);
+                let tn = _mm256_mul_ps(_mm256_sub_ps(_mm256_loadu_ps(planes[a]), o), inv);
+                let tf = _mm256_mul_ps(_mm256_sub_ps(_mm256_loadu_ps(planes[3 + a]), o), inv);
+                // max/min return the second operand when either is NaN: the accumulator.
+                t0 = _mm256_max_ps(tn, t0);
+                t1 = _mm256_min_ps(tf, t1);
+            }
+            t1 = _mm256_mul_ps(t1, _mm256_set1_ps(ROBUST));
+            _mm256_storeu_ps(tmin, t0);
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32
+        }
+    }
+
+    /// 4 lanes with SSE (always present on x86-64). Safety: `planes` and `tmin` must
+    /// point to 4 floats each.
+    #[inline(always)]
+    pub(super) unsafe fn node_test4(planes: &[*const f32; 6], r: &RayPre, t_max: f32, tmin: *mut f32) -> u32 {
+        unsafe {
+            let mut t0 = _mm_setzero_ps();
+            let mut t1 = _mm_set1_ps(t_max);
+            for a in 0..3 {
+                let o = _mm_set1_ps(r.o[a]);
+                let inv = _mm_set1_ps(r.inv[a]);
+                let tn = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(planes[a]), o), inv);
+                let tf = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(planes[3 + a]), o), inv);
+                t0 = _mm_max_ps(tn, t0);
+                t1 = _mm_min_ps(tf, t1);
+            }
+            t1 = _mm_mul_ps(t1, _mm_set1_ps(ROBUST));
+            _mm_storeu_ps(tmin, t0);
+            _mm_movemask_ps(_mm_cmple_ps(t0, t1)) as u32
+        }
+    }
+}
+
+/// Traversal stack of (child reference, entry distance); never read beyond what was
+/// pushed.
+struct Stack<const C: usize> {
+    items: [MaybeUninit<(u32, f32)>; C],
+    len: usize,
+}
+
+impl<const C: usize> Stack<C> {
+    #[inline(always)]
+    fn new() -> Self {
+        Stack { items: [const { MaybeUninit::uninit() }; C], len: 0 }
+    }
+    #[inline(always)]
+    fn push(&mut self, v: (u32, f32)) {
+        // Bounds-checked: the build bounds the depth, so this never fails.
+        self.items[self.len].write(v);
+        self.len += 1;
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32)> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: every index below `len` was written by `push` before.
+        Some(unsafe { self.items[self.len].assume_init() })
+    }
+}
+
+/// Stack capacity for the widest tree (N = 8).
+const STACK: usize = 7 * MAX_DEPTH + 8;
+
+/// Output of the collapse: nodes, triangle blocks, and the build's triangle order.
+struct Collapse<'a, const N: usize> {
+    nodes: Vec<Node<N>>,
+    blocks: Vec<TriBlock>,
+    order: &'a [u32],
+    tris: &'a [[Vec3; 3]],
+    depth: usize,
+}
+
+fn collapse<const N: usize>(node: &BuildNode, out: &mut Collapse<N>, depth: usize) -> u32 {
+    out.depth = out.depth.max(depth);
+    let BuildNode::Interior { children, .. } = node else {
+        let BuildNode::Leaf { first, count, .. } = node else { unreachable!() };
+        let block = out.blocks.len();
+        assert!(block < (1 << 29), "bvh{N}: more than 2^31 triangles are not supported");
+        // The build makes leaves of 1..=MAX_LEAF (= 4) triangles: one block each.
+        out.blocks.push(TriBlock::new(out.tris, &out.order[*first..*first + *count]));
+        return LEAF | (block as u32) << 2 | (*count as u32 - 1);
+    };
+    let nodes = &mut out.nodes;
+    let at = nodes.len();
+    nodes.push(Node::empty());
+    let mut kids: Vec<&BuildNode> = vec![&children[0], &children[1]];
+    while kids.len() < N {
+        let widest = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| matches!(k, BuildNode::Interior { .. }))
+            .max_by(|a, b| a.1.bounds().area().total_cmp(&b.1.bounds().area()))
+            .map(|(i, _)| i);
+        let Some(i) = widest else { break };
+        let BuildNode::Interior { children: c, .. } = kids[i] else { unreachable!() };
+        kids[i] = &c[0];
+        kids.insert(i + 1, &c[1]);
+    }
+    let mut filled = Node::empty();
+    for (slot, k) in kids.iter().enumerate() {
+        let b = k.bounds();
+        for a in 0..3 {
+            filled.lo[a][slot] = b.min[a];
+            filled.hi[a][slot] = b.max[a];
+        }
+    }
+    for (slot, k) in kids.iter().enumerate() {
+        filled.child[slot] = collapse(k, out, depth + 1);
+    }
+    out.nodes[at] = filled;
+    at as u32
+}
+
+impl<const N: usize> WideBvh<N> {
+    /// Builds the hierarchy over `tris`.
+    pub fn build(tris: &[[Vec3; 3]]) -> Self {
+        assert!(N == 4 || N == 8, "wide BVH supports 4 or 8 children");
+        const { assert!(MAX_LEAF <= 4, "a leaf must fit one triangle block") };
+        let simd = detect_simd();
+        let Some((root, order)) = build_tree(tris, BuildParams { max_leaf: MAX_LEAF, traversal_cost: TRAVERSAL_COST, block: 4 }) else {
+            return WideBvh { nodes: Vec::new(), blocks: Vec::new(), depth: 0, simd };
+        };
+        // Upper bounds (a leaf holds at least one triangle, a node at least two
+        // children), reserved up front so the huge-page hint covers the final arrays.
+        let mut out = Collapse::<N> { nodes: huge_vec(order.len()), blocks: huge_vec(order.len()), order: &order, tris, depth: 0 };
+        let r = collapse::<N>(&root, &mut out, 1);
+        if r & LEAF != 0 {
+            // A single leaf: give it a root node.
+            let mut n = Node::empty();
+            let b = root.bounds();
+            for a in 0..3 {
+                n.lo[a][0] = b.min[a];
+                n.hi[a][0] = b.max[a];
+            }
+            n.child[0] = r;
+            out.nodes.push(n);
+        }
+        assert!(out.depth <= MAX_DEPTH, "bvh{N}: tree depth {} exceeds the traversal stack", out.depth);
+        WideBvh { nodes: out.nodes, blocks: out.blocks, depth: out.depth, simd }
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Depth of the tree in wide nodes.
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    #[inline(always)]
+    fn intersect_impl<const AVX: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+        stats.rays += 1;
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let r = RayPre::new(ray);
+        let (o, d) = (ray.o, ray.d);
+        let mut best: Option<Hit> = None;
+        let mut t_best = t_max;
+        let mut stack = Stack::<STACK>::new();
+        let mut cur = 0u32;
+        let mut tmin = [0.0f32; N];
+        loop {
+            if cur & LEAF == 0 {
+                let node = &self.nodes[cur as usize];
+                stats.node_tests += N as u64;
+                let mut mask = node_test::<N, AVX>(node, &r, t_best, &mut tmin);
+                if mask != 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    if mask == 0 {
+                        cur = node.child[i];
+                        continue;
+                    }
+                    // Two or more: visit the nearest now, stack the rest farthest first.
+                    let mut hits: [(u32, f32); N] = [(0, 0.0); N];
+                    hits[0] = (node.child[i], tmin[i]);
+                    let mut k = 1;
+                    while mask != 0 {
+                        let i = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let e = (node.child[i], tmin[i]);
+                        // Insertion sort, descending by distance.
+                        let mut j = k;
+                        while j > 0 && hits[j - 1].1 < e.1 {
+                            hits[j] = hits[j - 1];
+                            j -= 1;
+                        }
+                        hits[j] = e;
+                        k += 1;
+                    }
+                    for h in &hits[..k - 1] {
+                        stack.push(*h);
+                    }
+                    cur = hits[k - 1].0;
+                    continue;
+                }
+            } else {
+                let block = &self.blocks[((cur & !LEAF) >> 2) as usize];
+                stats.tri_tests += u64::from(cur & 3) + 1;
+                let (mut mask, t, u, v) = block.intersect(o, d, t_best);
+                if mask != 0 {
+                    // The first lane of smallest t, as a sequential loop would pick.
+                    let mut j = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        let k = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        if t[k] < t[j] {
+                            j = k;
+                        }
+                    }
+                    t_best = t[j];
+                    best = Some(Hit { t: t[j], tri: block.id[j], b1: u[j], b2: v[j] });
+                }
+            }
+            // Pop the next entry that can still hold a closer hit.
+            loop {
+                match stack.pop() {
+                    None => return best,
+                    Some((c, t)) if t <= t_best * ROBUST => {
+                        cur = c;
+                        break;
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn occluded_impl<const AVX: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
+        stats.shadow_rays += 1;
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let r = RayPre::new(ray);
+        let (o, d) = (ray.o, ray.d);
+        let mut stack = Stack::<STACK>::new();
+        let mut cur = 0u32;
+        let mut tmin = [0.0f32; N];
+        loop {
+            if cur & LEAF == 0 {
+                let node = &self.nodes[cur as usize];
+                stats.node_tests += N as u64;
+                let mut mask = node_test::<N, AVX>(node, &r, t_max, &mut tmin);
+                if mask != 0 {
+                    // Any order finds an occluder; go down the first, stack the others.
+                    let i = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        let j = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        stack.push((node.child[j], 0.0));
+                    }
+                    cur = node.child[i];
+                    continue;
+                }
+            } else {
+                let block = &self.blocks[((cur & !LEAF) >> 2) as usize];
+                stats.tri_tests += u64::from(cur & 3) + 1;
+                if block.intersect(o, d, t_max).0 != 0 {
+                    return true;
+                }
+            }
+            match stack.pop() {
+                None => return false,
+                Some((c, _)) => cur = c,
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn intersect_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+        self.intersect_impl::<true>(ray, t_max, stats)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn occluded_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
+        self.occluded_impl::<true>(ray, t_max, stats)
+    }
+}
+
+/// An empty vector with room for `cap` items whose pages the kernel is asked to back
+/// with 2 MiB huge pages (Linux transparent huge pages in `madvise` mode). Incoherent
+/// rays on a million-triangle tree touch a new 4 KiB page at almost every node, so
+/// without this most node fetches also miss the TLB. The hint is advisory: nothing
+/// changes where it is ignored. Untouched capacity costs address space only.
+fn huge_vec<T>(cap: usize) -> Vec<T> {
+    let v: Vec<T> = Vec::with_capacity(cap);
+    #[cfg(target_os = "linux")]
+    {
+        let bytes = cap * std::mem::size_of::<T>();
+        const HUGE: usize = 2 << 20;
+        if bytes >= 2 * HUGE {
+            // Only whole huge pages inside the allocation.
+            let start = (v.as_ptr() as usize).next_multiple_of(HUGE);
+            let end = (v.as_ptr() as usize + bytes) & !(HUGE - 1);
+            if end > start {
+                // SAFETY: the range lies inside this vector's allocation, which nothing
+                // has touched yet; MADV_HUGEPAGE only changes how pages are backed.
+                unsafe { libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE) };
+            }
+        }
+    }
+    v
+}
+
+/// True when the AVX2 traversal can run on this CPU.
+fn detect_simd() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+impl<const N: usize> Accel for WideBvh<N> {
+    fn name(&self) -> &'static str {
+        if N == 8 { "bvh8" } else { "bvh4" }
+    }
+
+    fn intersect(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.simd {
+            // SAFETY: `simd` is set only when the CPU reports AVX2 and FMA.
+            return unsafe { self.intersect_avx2(ray, t_max, stats) };
+        }
+        self.intersect_impl::<false>(ray, t_max, stats)
+    }
+
+    fn occluded(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.simd {
+            // SAFETY: as in `intersect`.
+            return unsafe { self.occluded_avx2(ray, t_max, stats) };
+        }
+        self.occluded_impl::<false>(ray, t_max, stats)
+    }
+
+    fn memory_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Node<N>>() + self.blocks.len() * std::mem::size_of::<TriBlock>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn triangle_block_matches_the_scalar_test_bit_for_bit() {
+        use crate::geometry::intersect_triangle;
+        use crate::math::{hash_words, uniform_sphere};
+        let unit = |h: u64| (h >> 40) as f32 / (1u64 << 24) as f32;
+        let p = |k: u64, s: u64| uniform_sphere([unit(hash_words(&[k, s])), unit(hash_words(&[k, s + 1]))]);
+        let mut hits = 0;
+        for k in 0..20_000u64 {
+            let tris: Vec<[Vec3; 3]> = (0..4).map(|j| [p(k, 10 * j), p(k, 10 * j + 2) * 0.5, p(k, 10 * j + 4) * 2.0]).collect();
+            let n = 1 + (k % 4) as usize;
+            let ids: Vec<u32> = (0..n as u32).collect();
+            let block = TriBlock::new(&tris, &ids);
+            let (o, d) = (p(k, 100) * 0.3, p(k, 102));
+            let t_max = if k % 5 == 0 { 0.7 } else { f32::INFINITY };
+            let (mask, t, u, v) = block.intersect(o, d, t_max);
+            for j in 0..4 {
+                let want = if j < n {
+                    let pt = PreTriangle::new(&tris[j]);
+                    intersect_triangle(o, d, pt.v0, pt.e1, pt.e2, t_max)
+                } else {
+                    None
+                };
+                match want {
+                    Some((wt, wu, wv)) => {
+                        hits += 1;
+                        assert!(mask & (1 << j) != 0, "case {k} lane {j}");
+                        assert_eq!((t[j].to_bits(), u[j].to_bits(), v[j].to_bits()), (wt.to_bits(), wu.to_bits(), wv.to_bits()));
+                    }
+                    None => assert!(mask & (1 << j) == 0, "case {k} lane {j}"),
+                }
+            }
+        }
+        assert!(hits > 5_000, "{hits}");
+    }
+
+    #[test]
+    fn node_sizes_are_cache_line_multiples() {
+        assert_eq!(std::mem::size_of::<Node<4>>(), 128);
+        assert_eq!(std::mem::size_of::<Node<8>>(), 256);
+        assert_eq!(std::mem::size_of::<TriBlock>(), 160);
+    }
+
+    #[test]
+    fn empty_single_and_degenerate_inputs() {
+        let mut s = TraversalStats::default();
+        for bvh in [Box::new(Bvh4::build(&[])) as Box<dyn Accel>, Box::new(WideBvh::<8>::build(&[]))] {
+            assert!(bvh.intersect(&Ray::new(Vec3::ZERO, Vec3::X), 1.0, &mut s).is_none());
+            assert!(!bvh.occluded(&Ray::new(Vec3::ZERO, Vec3::X), 1.0, &mut s));
+        }
+        let t = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let one = Bvh4::build(&[t]);
+        let h = one.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z), 5.0, &mut s).unwrap();
+        assert_eq!((h.t, h.tri), (1.0, 0));
+        // Many triangles with the same centroid still build and are found; an
+        // axis-parallel ray starting on a box plane is not lost to 0·∞.
+        let many = WideBvh::<8>::build(&vec![t; 100]);
+        assert!(many.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z), 5.0, &mut s).is_some());
+        assert!(many.occluded(&Ray::new(Vec3::new(0.0, 0.3, 1.0), -Vec3::Z), 5.0, &mut s));
+    }
+}

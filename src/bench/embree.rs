@@ -1,0 +1,292 @@
+//! `bench embree-compare`: runs the Embree reference harness (`shared/bench/embree`,
+//! a C program over Debian's Embree 3) and `bench accel` on the same OBJ files with
+//! the same ray definitions, case by case and back to back (so both see the same
+//! machine load), and prints photonlab/Embree throughput ratios per ray set.
+//!
+//! Cases: the Stanford dragon and Dabrovic Sponza from the shared scene folder (when
+//! present) and the built-in displaced sphere (≥ 1 M triangles) exported as OBJ,
+//! each with the outside and the inside camera, at each thread count.
+
+use super::accel::{BenchMesh, BenchRow, run_mesh};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Flags of `bench embree-compare`.
+#[derive(Args, Debug, Clone)]
+pub struct EmbreeArgs {
+    /// The harness binary (default: `embree_bench` in --harness-dir, else a copy built
+    /// under `target/embree-harness/` from the sources there).
+    #[arg(long)]
+    pub harness: Option<PathBuf>,
+    /// Folder with the harness sources (`embree_bench.c`, `build.sh`).
+    #[arg(long, default_value = "../shared/bench/embree")]
+    pub harness_dir: PathBuf,
+    /// Folder with `stanford-dragon/dragon.obj` and `sponza-dabrovic/sponza.obj`.
+    #[arg(long, default_value = "../shared/scenes")]
+    pub scenes: PathBuf,
+    /// Where the built-in sphere is exported (and the harness built if needed).
+    #[arg(long, default_value = "target/embree-harness")]
+    pub work_dir: PathBuf,
+    /// Rays per set.
+    #[arg(long, default_value_t = 2_000_000)]
+    pub rays: usize,
+    /// Thread counts, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    pub threads: Vec<usize>,
+    /// photonlab accelerators, comma-separated (each gets its own ratio).
+    #[arg(long, value_delimiter = ',', default_value = "bvh8")]
+    pub accel: Vec<String>,
+    /// Only these cases (dragon, dragon-inside, sponza, sponza-inside,
+    /// displaced-sphere, displaced-sphere-inside), comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    pub cases: Vec<String>,
+    /// Print JSON lines (both engines' figures and the ratio) instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One compared row.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CompareRow {
+    /// Scene name (with `-inside`).
+    pub scene: String,
+    /// `camera`, `diffuse` or `shadow`.
+    pub rays: String,
+    /// Threads.
+    pub threads: usize,
+    /// photonlab engine (`photonlab-<accel>`).
+    pub engine: String,
+    /// Embree Mrays/s.
+    pub embree_mrays_per_s: f64,
+    /// photonlab Mrays/s.
+    pub photonlab_mrays_per_s: f64,
+    /// photonlab / Embree.
+    pub ratio: f64,
+    /// Embree hit fraction.
+    pub embree_hit_fraction: f64,
+    /// photonlab hit fraction.
+    pub photonlab_hit_fraction: f64,
+    /// Embree build (HIGH quality), seconds.
+    pub embree_build_s: f64,
+    /// photonlab build, seconds.
+    pub photonlab_build_s: f64,
+}
+
+/// Finds the harness binary, building a private copy from the sources if needed.
+fn locate_harness(a: &EmbreeArgs) -> Result<PathBuf> {
+    if let Some(h) = &a.harness {
+        if h.is_file() {
+            return Ok(h.clone());
+        }
+        bail!("--harness {}: no such file", h.display());
+    }
+    for cand in [a.harness_dir.join("embree_bench"), a.work_dir.join("embree_bench")] {
+        if cand.is_file() {
+            return Ok(cand);
+        }
+    }
+    let src = a.harness_dir.join("embree_bench.c");
+    if !src.is_file() {
+        bail!(
+            "Embree harness not found: no {} and no sources at {} (give --harness PATH or --harness-dir DIR; \
+             the harness is shared/bench/embree in the project's shared folder)",
+            a.work_dir.join("embree_bench").display(),
+            src.display()
+        );
+    }
+    // Build a copy: the shared folder stays untouched.
+    std::fs::create_dir_all(&a.work_dir).with_context(|| format!("creating {}", a.work_dir.display()))?;
+    for f in ["embree_bench.c", "build.sh"] {
+        std::fs::copy(a.harness_dir.join(f), a.work_dir.join(f))
+            .with_context(|| format!("copying {f} from {}", a.harness_dir.display()))?;
+    }
+    eprintln!("building the Embree harness in {} (build.sh installs libembree-dev if missing)", a.work_dir.display());
+    let st = Command::new("bash").arg("build.sh").current_dir(&a.work_dir).status().context("running build.sh")?;
+    let bin = a.work_dir.join("embree_bench");
+    if !st.success() || !bin.is_file() {
+        bail!("building the Embree harness failed ({st}); see the output above (it needs gcc and libembree-dev)");
+    }
+    Ok(bin)
+}
+
+/// Runs the harness on one case; returns its JSON rows.
+fn run_harness(bin: &Path, obj: &Path, inside: bool, threads: usize, rays: usize) -> Result<Vec<serde_json::Value>> {
+    let mut cmd = Command::new(bin);
+    cmd.arg(obj).args(["--threads", &threads.to_string(), "--rays", &rays.to_string(), "--builds", "1"]);
+    if inside {
+        cmd.arg("--inside");
+    }
+    let out = cmd.output().with_context(|| format!("running {}", bin.display()))?;
+    if !out.status.success() {
+        bail!("{} failed on {}: {}", bin.display(), obj.display(), String::from_utf8_lossy(&out.stderr).trim());
+    }
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| serde_json::from_str(l).with_context(|| format!("harness output is not JSON: {l}")))
+        .collect()
+}
+
+/// Runs `bench embree-compare`.
+pub fn run(a: &EmbreeArgs) -> Result<()> {
+    if a.threads.is_empty() || a.threads.iter().any(|&t| t == 0 || t > 64) {
+        bail!("--threads: give thread counts between 1 and 64");
+    }
+    let harness = locate_harness(a)?;
+    std::fs::create_dir_all(&a.work_dir).with_context(|| format!("creating {}", a.work_dir.display()))?;
+    let sphere = a.work_dir.join("displaced-sphere.obj");
+    if !sphere.is_file() {
+        eprintln!("exporting the built-in displaced sphere to {}", sphere.display());
+        BenchMesh::from_builtin("displaced-sphere")?.write_obj(&sphere)?;
+    }
+    let files = [
+        ("dragon", a.scenes.join("stanford-dragon/dragon.obj")),
+        ("sponza", a.scenes.join("sponza-dabrovic/sponza.obj")),
+        ("displaced-sphere", sphere),
+    ];
+    let mut rows = Vec::new();
+    if !a.json {
+        print_header();
+    }
+    for (name, path) in &files {
+        let wanted = |inside: bool| {
+            let case = if inside { format!("{name}-inside") } else { name.to_string() };
+            a.cases.is_empty() || a.cases.contains(&case)
+        };
+        if !wanted(false) && !wanted(true) {
+            continue;
+        }
+        if !path.is_file() {
+            eprintln!("skipping {name}: {} not found (see SOURCES.md in the scene folder)", path.display());
+            continue;
+        }
+        let mesh = BenchMesh::from_obj(path)?;
+        for inside in [false, true] {
+            if !wanted(inside) {
+                continue;
+            }
+            for &t in &a.threads {
+                // Back to back, so both engines see the same machine load.
+                let emb = run_harness(&harness, path, inside, t, a.rays)?;
+                let ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1)?;
+                let new = pair_rows(&emb, &ours);
+                for r in &new {
+                    if a.json {
+                        println!("{}", serde_json::to_string(r)?);
+                    } else {
+                        print_row(r);
+                    }
+                }
+                rows.extend(new);
+            }
+        }
+    }
+    if rows.is_empty() {
+        bail!("no case could be run (models missing? see the messages above)");
+    }
+    Ok(())
+}
+
+/// Matches our rows with the harness's one-ray-at-a-time rows (its `intersect8`
+/// packet row has no counterpart).
+fn pair_rows(emb: &[serde_json::Value], ours: &[BenchRow]) -> Vec<CompareRow> {
+    let mut out = Vec::new();
+    for r in ours {
+        let api = if r.rays == "shadow" { "occluded1" } else { "intersect1" };
+        let Some(e) = emb.iter().find(|e| e["rays"] == r.rays.as_str() && e["api"] == api) else { continue };
+        let f = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
+        out.push(CompareRow {
+            scene: r.scene.clone(),
+            rays: r.rays.clone(),
+            threads: r.threads,
+            engine: r.engine.clone(),
+            embree_mrays_per_s: f("mrays_per_s"),
+            photonlab_mrays_per_s: r.mrays_per_s,
+            ratio: r.mrays_per_s / f("mrays_per_s"),
+            embree_hit_fraction: f("hit_fraction"),
+            photonlab_hit_fraction: r.hit_fraction,
+            embree_build_s: f("build_s"),
+            photonlab_build_s: r.build_s,
+        });
+    }
+    out
+}
+
+fn print_header() {
+    println!(
+        "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13} | {:>16} | {:>6} | {:>9} | {:>9} |",
+        "scene", "rays", "thr", "engine", "Embree Mrays/s", "photonlab Mrays/s", "ratio", "hit (E)", "hit (p)"
+    );
+    println!("|---|---|---:|---|---:|---:|---:|---:|---:|");
+}
+
+fn print_row(r: &CompareRow) {
+    println!(
+        "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13.2} | {:>16.2} | {:>6.2} | {:>9.4} | {:>9.4} |",
+        r.scene,
+        r.rays,
+        r.threads,
+        r.engine,
+        r.embree_mrays_per_s,
+        r.photonlab_mrays_per_s,
+        r.ratio,
+        r.embree_hit_fraction,
+        r.photonlab_hit_fraction
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_pair_by_ray_set_and_api() {
+        let emb: Vec<serde_json::Value> = [
+            r#"{"engine":"embree","rays":"camera","api":"intersect1","mrays_per_s":10.0,"hit_fraction":0.5,"build_s":0.1}"#,
+            r#"{"engine":"embree","rays":"diffuse","api":"intersect8","mrays_per_s":99.0,"hit_fraction":0.2,"build_s":0.1}"#,
+            r#"{"engine":"embree","rays":"diffuse","api":"intersect1","mrays_per_s":4.0,"hit_fraction":0.2,"build_s":0.1}"#,
+        ]
+        .iter()
+        .map(|s| serde_json::from_str(s).unwrap())
+        .collect();
+        let row = |rays: &str, m: f64| BenchRow {
+            engine: "photonlab-bvh8".into(),
+            scene: "x".into(),
+            triangles: 1,
+            rays: rays.into(),
+            api: "intersect1".into(),
+            threads: 1,
+            build_s: 0.1,
+            mrays_per_s: m,
+            hit_fraction: 0.2,
+            n_rays: 10,
+            node_tests_per_ray: 1.0,
+            tri_tests_per_ray: 1.0,
+            memory_bytes: 0,
+        };
+        let p = pair_rows(&emb, &[row("camera", 5.0), row("diffuse", 6.0), row("shadow", 1.0)]);
+        assert_eq!(p.len(), 2, "shadow has no Embree row here");
+        assert_eq!((p[0].rays.as_str(), p[0].ratio), ("camera", 0.5));
+        assert_eq!((p[1].rays.as_str(), p[1].ratio), ("diffuse", 1.5), "intersect8 must not be paired");
+    }
+
+    #[test]
+    fn missing_harness_is_a_clear_error() {
+        let dir = std::env::temp_dir().join(format!("photonlab-no-harness-{}", std::process::id()));
+        let a = EmbreeArgs {
+            harness: None,
+            harness_dir: dir.join("nowhere"),
+            scenes: dir.join("scenes"),
+            work_dir: dir.join("work"),
+            rays: 10,
+            threads: vec![1],
+            accel: vec!["bvh8".into()],
+            cases: vec![],
+            json: false,
+        };
+        let e = run(&a).unwrap_err().to_string();
+        assert!(e.contains("Embree harness not found") && e.contains("embree_bench.c"), "{e}");
+    }
+}
