@@ -47,6 +47,7 @@ fn run_into(manifest: &Path, out: &Path, shard: Option<&str>, force: bool) -> Ru
         force,
         shard: shard.map(|s| s.parse::<Shard>().unwrap()),
         reference_only: false,
+        list: false,
         quiet: true,
     })
     .unwrap()
@@ -281,9 +282,16 @@ fn shipped_manifests_validate_and_missing_models_are_clear_errors() {
     for f in ["cornell-empty.toml", "cornell-empty.obj", "cornell-empty.mtl"] {
         std::fs::copy(root.join("external/cornell-empty").join(f), d.join("cornell-empty").join(f)).unwrap();
     }
-    let e =
-        run(&RunArgs { manifest: p.clone(), out: Some(d.join("dragon")), force: false, shard: None, reference_only: false, quiet: true })
-            .unwrap_err();
+    let e = run(&RunArgs {
+        manifest: p.clone(),
+        out: Some(d.join("dragon")),
+        force: false,
+        shard: None,
+        reference_only: false,
+        list: false,
+        quiet: true,
+    })
+    .unwrap_err();
     let e = format!("{e:#}");
     assert!(e.starts_with(&p.display().to_string()) && e.contains("not found") && e.contains("download"), "{e}");
     assert!(!d.join("dragon").exists());
@@ -296,9 +304,16 @@ fn sigkill_mid_run_then_resume_gives_the_uninterrupted_results() {
     let text = TINY.replace("[12, 12]", "[40, 40]").replace("spp = [1, 2]", "spp = [8, 16]");
     let p = write(&d, "k.toml", &text);
     // The reference first, alone (as a cluster would before starting the shards).
-    let r =
-        run(&RunArgs { manifest: p.clone(), out: Some(d.join("killed")), force: false, shard: None, reference_only: true, quiet: true })
-            .unwrap();
+    let r = run(&RunArgs {
+        manifest: p.clone(),
+        out: Some(d.join("killed")),
+        force: false,
+        shard: None,
+        reference_only: true,
+        list: false,
+        quiet: true,
+    })
+    .unwrap();
     assert!(r.reference_rendered && r.ran == 0 && !d.join("killed/cells.csv").exists());
     // A real process killed with SIGKILL as soon as its first cell is recorded.
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_photonlab"))
@@ -330,5 +345,27 @@ fn sigkill_mid_run_then_resume_gives_the_uninterrupted_results() {
     for (cell, row) in &r1 {
         assert_eq!(stable(&h1, row), stable(&h2, &r2[cell]), "{cell}");
     }
+    std::fs::remove_dir_all(d).ok();
+}
+
+#[test]
+fn several_scenes_get_their_own_references() {
+    let d = scratch("scenes");
+    let text = TINY.replace("scene = \"cornell\"", "scene = [\"cornell\", \"furnace\"]").replace("repeats = 2", "repeats = 1");
+    let p = write(&d, "s.toml", &text);
+    let out = d.join("s");
+    let r = run_into(&p, &out, None, false);
+    assert_eq!(r.ran, 8);
+    let (h, rows) = read_csv(&out);
+    assert!(rows.contains_key("scene-furnace_spp-2_sampler-halton_r0"));
+    for f in ["reference-cornell.exr", "reference-furnace.png"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // Errors are measured against each scene's own reference: the furnace's image is
+    // uniform (L_e / (1 − a)), so even 1 spp is close to it, unlike the Cornell box.
+    let rel = |c: &str| rows[c][h.iter().position(|x| x == "relmse").unwrap()].parse::<f64>().unwrap();
+    assert!(rel("scene-furnace_spp-1_sampler-random_r0") < 0.5 * rel("scene-cornell_spp-1_sampler-random_r0"));
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(summary.contains("![reference furnace](reference-furnace.png)"), "{summary}");
     std::fs::remove_dir_all(d).ok();
 }

@@ -46,6 +46,10 @@ pub struct RunArgs {
     /// cluster render them once before the shards start.
     #[arg(long)]
     pub reference_only: bool,
+    /// Validate the manifest and list its cells (this shard's, with --shard) and
+    /// whether each is finished, without rendering anything.
+    #[arg(long)]
+    pub list: bool,
     /// No progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -268,6 +272,10 @@ pub fn references_dir(out: &Path) -> PathBuf {
 pub fn run(args: &RunArgs) -> Result<RunReport> {
     let m = Manifest::load(&args.manifest)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("results").join(&m.name));
+    if args.list {
+        list_cells(&m, &out, args.shard)?;
+        return Ok(RunReport { dir: out, ..Default::default() });
+    }
     // Every scene loads (and every model file exists) before anything renders.
     let scenes = m.scenes.iter().map(|s| s.load(m.resolution)).collect::<Result<Vec<Scene>>>()?;
     if !args.quiet {
@@ -350,6 +358,31 @@ fn log(pb: &indicatif::ProgressBar, line: String) {
     if pb.is_hidden() { eprintln!("{line}") } else { pb.println(line) }
 }
 
+/// `--list`: the cells, with shard and state, and the models the scenes need.
+fn list_cells(m: &Manifest, out: &Path, shard: Option<Shard>) -> Result<()> {
+    for s in &m.scenes {
+        s.check_files()?;
+    }
+    // Reference keys need the loaded scenes; without them, "finished" means a record
+    // for the same configuration exists.
+    let info: Option<RunInfo> = std::fs::read_to_string(out.join("run.json")).ok().and_then(|t| serde_json::from_str(&t).ok());
+    let mut n = 0;
+    for c in m.cells.iter().filter(|c| shard.is_none_or(|s| s.takes(c.index))) {
+        let done = info.as_ref().and_then(|i| i.references.get(c.scene)).is_some_and(|r| finished(out, c, &r.key).is_some());
+        println!("{:>5}  {}  {}", c.index, if done { "finished" } else { "to run  " }, c.stem);
+        n += 1;
+    }
+    println!(
+        "{}: {n} of {} cells listed ({} configurations × {} repeats), output {}",
+        m.path.display(),
+        m.cells.len(),
+        m.configurations(),
+        m.repeats,
+        out.display()
+    );
+    Ok(())
+}
+
 /// Combines the cells under `dir` (from one run or several shards) into
 /// `cells.csv`, `cells.jsonl`, plots and `summary.md`.
 pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
@@ -424,6 +457,9 @@ pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
 /// `photonlab run`.
 pub fn run_cmd(args: &RunArgs) -> Result<()> {
     let r = run(args)?;
+    if args.list {
+        return Ok(());
+    }
     println!(
         "{}: ran {} cell(s), kept {} finished{}",
         r.dir.display(),
