@@ -28,6 +28,8 @@ use std::mem::MaybeUninit;
 
 /// Largest leaf of the underlying binary build.
 pub const MAX_LEAF: usize = 4;
+/// Extra triangle references for pre-splitting large triangles (fraction of the count).
+const PRESPLIT: f32 = 0.3;
 /// SAH node-visit cost of the underlying binary build, relative to a triangle test.
 const TRAVERSAL_COST: f32 = 1.0;
 /// Marks a child reference as a leaf: `LEAF | block << 2 | (count − 1)`.
@@ -306,9 +308,18 @@ fn collapse<const N: usize>(node: &BuildNode, out: &mut Collapse<N>, depth: usiz
         let BuildNode::Leaf { first, count, .. } = node else { unreachable!() };
         let block = out.blocks.len();
         assert!(block < (1 << 29), "bvh{N}: more than 2^31 triangles are not supported");
-        // The build makes leaves of 1..=MAX_LEAF (= 4) triangles: one block each.
-        out.blocks.push(TriBlock::new(out.tris, &out.order[*first..*first + *count]));
-        return LEAF | (block as u32) << 2 | (*count as u32 - 1);
+        // The build makes leaves of 1..=MAX_LEAF (= 4) references: one block each.
+        // Pre-split parts of one triangle that meet in a leaf are tested once.
+        let mut ids = [0u32; MAX_LEAF];
+        let mut n = 0;
+        for &id in &out.order[*first..*first + *count] {
+            if !ids[..n].contains(&id) {
+                ids[n] = id;
+                n += 1;
+            }
+        }
+        out.blocks.push(TriBlock::new(out.tris, &ids[..n]));
+        return LEAF | (block as u32) << 2 | (n as u32 - 1);
     };
     let nodes = &mut out.nodes;
     let at = nodes.len();
@@ -347,7 +358,9 @@ impl<const N: usize> WideBvh<N> {
         assert!(N == 4 || N == 8, "wide BVH supports 4 or 8 children");
         const { assert!(MAX_LEAF <= 4, "a leaf must fit one triangle block") };
         let simd = detect_simd();
-        let Some((root, order)) = build_tree(tris, BuildParams { max_leaf: MAX_LEAF, traversal_cost: TRAVERSAL_COST, block: 4 }) else {
+        let Some((root, order)) =
+            build_tree(tris, BuildParams { max_leaf: MAX_LEAF, traversal_cost: TRAVERSAL_COST, block: 4, bins: 16, presplit: PRESPLIT })
+        else {
             return WideBvh { nodes: Vec::new(), blocks: Vec::new(), depth: 0, simd };
         };
         // Upper bounds (a leaf holds at least one triangle, a node at least two
@@ -402,6 +415,14 @@ impl<const N: usize> WideBvh<N> {
                     mask &= mask - 1;
                     if mask == 0 {
                         cur = node.child[i];
+                        continue;
+                    }
+                    let j = mask.trailing_zeros() as usize;
+                    if mask & (mask - 1) == 0 {
+                        // Two (the common case): no sort.
+                        let (near, far) = if tmin[j] < tmin[i] { (j, i) } else { (i, j) };
+                        stack.push((node.child[far], tmin[far]));
+                        cur = node.child[near];
                         continue;
                     }
                     // Two or more: visit the nearest now, stack the rest farthest first.
