@@ -289,6 +289,7 @@ mod tests {
             threads: 1,
             build_s: 0.1,
             mrays_per_s: m,
+            cpu_mrays_per_s: m,
             hit_fraction: 0.2,
             n_rays: 10,
             node_tests_per_ray: 1.0,
