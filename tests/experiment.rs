@@ -201,8 +201,12 @@ fn shards_merged_equal_one_run_and_reference_cache() {
     }
     let e = format!("{:#}", photonlab::experiment::finalize(&sharded, true).unwrap_err());
     assert!(e.contains("3 of 8 cells are not finished"), "{e}");
-    ran += run_into(&p, &sharded, Some("1/3"), false).ran;
+    // The last shard on "another machine": its own directory, cells copied over.
+    let elsewhere = d.join("elsewhere");
+    ran += run_into(&p, &elsewhere, Some("1/3"), false).ran;
     assert_eq!(ran, 8);
+    assert_eq!(photonlab::experiment::import_cells(&sharded, &elsewhere).unwrap(), 3);
+    assert_eq!(photonlab::experiment::import_cells(&sharded, &elsewhere).unwrap(), 0);
     photonlab::experiment::finalize(&sharded, true).unwrap();
     let (h1, r1) = read_csv(&one);
     let (h2, r2) = read_csv(&sharded);
