@@ -71,40 +71,34 @@ def material_from_mtl(m):
     return {"type": "diffuse", "albedo": kd}
 
 
-ALIASES = {"lambertian": "diffuse", "dielectric": "glass", "kd": "albedo", "ks": None, "tf": "tint", "ke": "radiance", "exponent": "ns"}
+TYPE_ALIASES = {"lambertian": "diffuse", "dielectric": "glass"}
+# Per type: canonical key -> (aliases, default), as the contract's override table gives them.
+OVERRIDE_KEYS = {
+    "diffuse": {"albedo": (("kd",), [0.5] * 3)},
+    "mirror": {"reflectance": (("ks",), [1.0] * 3)},
+    "glass": {"ior": ((), 1.5), "tint": (("tf",), [1.0] * 3)},
+    "glossy": {"kd": (("albedo",), [0.5] * 3), "ks": ((), [0.0] * 3), "ns": (("exponent",), 1.0)},
+    "emitter": {"radiance": (("ke",), [0.0] * 3), "albedo": (("kd",), [0.5] * 3)},
+}
 
 
 def material_from_override(o):
     o = dict(o)
-    t = ALIASES.get(o.pop("type"), None) or o.get("type")
-    t = {"lambertian": "diffuse", "dielectric": "glass"}.get(t, t)
+    t = o.pop("type")
+    t = TYPE_ALIASES.get(t, t)
+    if t not in OVERRIDE_KEYS:
+        sys.exit(f"unknown material override type {t!r}")
     out = {"type": t}
-    for k, v in o.items():
-        if t == "mirror" and k == "ks":
-            k = "reflectance"
-        elif t == "glossy" and k == "albedo":
-            k = "kd"
-        elif t == "emitter" and k == "ke":
-            k = "radiance"
-        elif k in ("kd",) and t in ("diffuse", "emitter"):
-            k = "albedo"
-        elif k == "tf":
-            k = "tint"
-        elif k == "exponent":
-            k = "ns"
-        out[k] = v
-    defaults = {
-        "diffuse": {"albedo": [0.5] * 3},
-        "mirror": {"reflectance": [1.0] * 3},
-        "glass": {"ior": 1.5, "tint": [1.0] * 3},
-        "glossy": {"kd": [0.5] * 3, "ks": [0.0] * 3, "ns": 1.0},
-        "emitter": {"radiance": [0.0] * 3, "albedo": [0.5] * 3},
-    }
-    for k, v in defaults[t].items():
-        out.setdefault(k, v)
-    for k in ("albedo", "reflectance", "tint", "kd", "ks", "radiance"):
-        if k in out and not isinstance(out[k], list):
-            out[k] = [float(out[k])] * 3
+    for key, (aliases, default) in OVERRIDE_KEYS[t].items():
+        v = default
+        for k in (key,) + aliases:
+            if k in o:
+                v = o.pop(k)
+        if isinstance(default, list) and not isinstance(v, list):
+            v = [float(v)] * 3
+        out[key] = v
+    if o:
+        sys.exit(f"unknown key(s) {sorted(o)} in a {t} material override")
     return out
 
 

@@ -215,7 +215,7 @@ impl Integrator for PhotonIntegrator {
             caustic_photons: cfg.caustic_photons as usize,
             fixed_emit: cfg.emit_photons,
             max_emitted: cfg.max_emitted,
-            max_depth: cfg.max_depth.unwrap_or(u32::MAX),
+            max_depth: cfg.depth_limit(),
         };
         let maps = build_maps(world, emit_sampler.as_ref(), self.rr.as_ref(), &settings, self.quiet);
         for w in &maps.warnings {
