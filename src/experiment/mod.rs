@@ -366,8 +366,8 @@ fn list_cells(m: &Manifest, out: &Path, shard: Option<Shard>) -> Result<()> {
     for s in &m.scenes {
         s.check_files()?;
     }
-    // Reference keys need the loaded scenes; without them, "finished" means a record
-    // for the same configuration exists.
+    // The reference keys come from the last run's run.json (computing them would
+    // mean loading the scenes); without one, nothing counts as finished.
     let info: Option<RunInfo> = std::fs::read_to_string(out.join("run.json")).ok().and_then(|t| serde_json::from_str(&t).ok());
     let mut n = 0;
     for c in m.cells.iter().filter(|c| shard.is_none_or(|s| s.takes(c.index))) {
