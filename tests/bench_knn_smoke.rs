@@ -54,3 +54,19 @@ fn bench_knn_rejects_zero_points() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).starts_with("error: "));
 }
+
+/// `bench scaling` on a tiny render: both thread counts run, every phase is timed,
+/// and the command's own check that the two images are bit-identical passes.
+#[test]
+fn bench_scaling_tiny_render() {
+    let o = Command::new(env!("CARGO_BIN_EXE_photonlab"))
+        .args(["bench", "scaling", "--photons", "5000", "--size", "16", "--spp", "1", "--reps", "1", "--json"])
+        .output()
+        .expect("run photonlab");
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect();
+    let phases: Vec<&str> = rows.iter().map(|r| r["phase"].as_str().unwrap()).collect();
+    assert_eq!(phases, ["photon tracing", "kd-tree build", "cache prefill", "rendering"]);
+    assert!(rows.iter().all(|r| r["t1_s"].as_f64().unwrap() > 0.0 && r["t2_s"].as_f64().unwrap() > 0.0), "{out}");
+}

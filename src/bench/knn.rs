@@ -146,21 +146,21 @@ mod imp {
         kiddo_bytes_per_point: f64,
         /// Queries whose neighbour sets differ (ties aside); None for build rows.
         mismatches: Option<usize>,
+        /// 1-minute load average when the row was measured.
+        load_average: Option<f64>,
     }
 
-    /// Bytes held by kiddo's immutable tree, from its own report of its leaf arena
-    /// and leaf count plus its stem array (one f32 split per stem).
+    /// Bytes held by kiddo's immutable tree, from its layout (kiddo reports no size):
+    /// per point 3 × f32 and a u32 item in the leaf arena, per leaf an extent of two
+    /// usize, per stem one f32 split (stem count from its `Debug` output, which
+    /// reports it; else one stem per leaf).
     fn kiddo_bytes(t: &Kiddo) -> usize {
         let dbg = format!("{t:?}");
-        let field = |name: &str| -> Option<usize> {
-            let at = dbg.find(&format!("{name}: "))? + name.len() + 2;
-            dbg[at..].split(|c: char| !c.is_ascii_digit()).next()?.parse().ok()
-        };
-        let arena = field("arena_bytes").unwrap_or(t.size() * 16);
-        let leaves = t.leaf_count();
-        // Stems: one split value per internal node of a complete binary tree over the leaves.
-        let stems = leaves.next_power_of_two();
-        arena + leaves * 16 + stems * 4
+        let stems = dbg
+            .find("stem_count: ")
+            .and_then(|at| dbg[at + 12..].split(|c: char| !c.is_ascii_digit()).next()?.parse().ok())
+            .unwrap_or(t.leaf_count());
+        t.size() * 16 + t.leaf_count() * 2 * std::mem::size_of::<usize>() + stems * 4
     }
 
     fn own_query(tree: &KdTree<Photon>, q: Vec3, op: Op, heap: &mut KnnHeap) -> usize {
@@ -256,6 +256,7 @@ mod imp {
                     own_bytes_per_point: o.memory_bytes() as f64 / o.len() as f64,
                     kiddo_bytes_per_point: kiddo_bytes(&k) as f64 / k.size().max(1) as f64,
                     mismatches: None,
+                    load_average: crate::bench::scaling::load_average(),
                 });
                 own = Some((o, kpts));
                 kid = Some(k);
@@ -326,6 +327,7 @@ mod imp {
                         own_bytes_per_point: bytes.0,
                         kiddo_bytes_per_point: bytes.1,
                         mismatches: Some(mismatches),
+                        load_average: crate::bench::scaling::load_average(),
                     });
                 }
             }
@@ -346,9 +348,10 @@ mod imp {
         }
         if let Some(r) = rows.first() {
             println!(
-                "bench knn: {} points, {} queries; times in ms (build) or ns/query; ratio = own / kiddo",
+                "bench knn: {} points, {} queries; times in ms (build) or ns/query (wall time / queries); ratio = own / kiddo; load average {}",
                 r.n,
-                rows.iter().map(|r| r.queries).max().unwrap_or(0)
+                rows.iter().map(|r| r.queries).max().unwrap_or(0),
+                r.load_average.map_or("unknown".into(), |l| format!("{l:.1}"))
             );
         }
         println!("| dist | op | threads | own | kiddo | ratio | own B/pt | kiddo B/pt | same |");

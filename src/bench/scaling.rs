@@ -20,7 +20,7 @@ pub struct ScalingArgs {
     /// Built-in scene.
     #[arg(long, default_value = "cornell-glass")]
     pub scene: String,
-    /// Photons in the direct + indirect maps (the caustic map gets a quarter).
+    /// Photons in the direct + indirect maps (the caustic map gets a tenth).
     #[arg(long, default_value_t = 1_000_000)]
     pub photons: u32,
     /// Image width and height in pixels.
@@ -43,6 +43,12 @@ impl Default for ScalingArgs {
     }
 }
 
+/// The 1-minute load average (Linux), printed beside timings: on a shared machine a
+/// load above the core count means the threads did not get their cores.
+pub fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg").ok()?.split_whitespace().next()?.parse().ok()
+}
+
 /// Phases timed, with the counter each comes from.
 const PHASES: [(&str, &str); 4] =
     [("photon tracing", "photon_trace_s"), ("kd-tree build", "kdtree_build_s"), ("cache prefill", "prefill_s"), ("rendering", "render_s")];
@@ -55,6 +61,8 @@ struct Row {
     t1_s: f64,
     t2_s: f64,
     speedup: f64,
+    cores: usize,
+    load_average: Option<f64>,
 }
 
 /// Runs `bench scaling`.
@@ -71,7 +79,7 @@ pub fn run(args: &ScalingArgs) -> Result<()> {
                 integrator: "photon".into(),
                 gather: "irradiance_cache".into(),
                 photons: args.photons,
-                caustic_photons: args.photons / 4,
+                caustic_photons: args.photons / 10,
                 spp: args.spp,
                 threads,
                 resolution: Some([args.size, args.size]),
@@ -100,6 +108,8 @@ pub fn run(args: &ScalingArgs) -> Result<()> {
             t1_s: best[0][j],
             t2_s: best[1][j],
             speedup: best[0][j] / best[1][j],
+            cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            load_average: load_average(),
         })
         .collect();
     if args.json {
@@ -108,14 +118,16 @@ pub fn run(args: &ScalingArgs) -> Result<()> {
         }
     } else {
         println!(
-            "bench scaling: {}, {} global + {} caustic photons, irradiance cache, {}x{} px, {} spp; best of {} runs",
+            "bench scaling: {}, {} global + {} caustic photons, irradiance cache, {}x{} px, {} spp; best of {} runs; {} cores, load average {}",
             args.scene,
             args.photons,
-            args.photons / 4,
+            args.photons / 10,
             args.size,
             args.size,
             args.spp,
-            args.reps.max(1)
+            args.reps.max(1),
+            rows[0].cores,
+            rows[0].load_average.map_or("unknown".into(), |l| format!("{l:.1}"))
         );
         println!("| phase | 1 thread | 2 threads | speed-up |");
         println!("|---|---|---|---|");

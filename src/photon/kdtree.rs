@@ -33,7 +33,7 @@ pub trait KdPoint: Copy + Send + Sync {
 }
 
 /// Largest range stored as a leaf bucket.
-pub const LEAF: usize = 20;
+pub const LEAF: usize = 16;
 const BITS: u32 = 20;
 const MASK: u64 = (1 << BITS) - 1;
 const AXIS_SHIFT: u32 = 60;
@@ -151,7 +151,8 @@ fn coord_bounds(e: &[(u64, u32)]) -> ([u32; 3], [u32; 3]) {
 /// and a stable parallel partition, whose result does not depend on the thread count
 /// either.
 fn split_at_median(e: &mut [(u64, u32)], axis: usize, m: usize) {
-    let key = |x: &(u64, u32)| (coord(x.0, axis), x.1);
+    // One u64 compare: coordinate above, original index below.
+    let key = |x: &(u64, u32)| ((coord(x.0, axis) as u64) << 32) | x.1 as u64;
     if e.len() < PAR_PARTITION {
         e.select_nth_unstable_by_key(m, key);
         return;
@@ -196,15 +197,14 @@ fn split_at_median(e: &mut [(u64, u32)], axis: usize, m: usize) {
     let mut at_v: Vec<u32> = e.par_iter().filter(|x| coord(x.0, axis) == v).map(|x| x.1).collect();
     let r = m - below_hi - below_lo;
     let (_, &mut pivot_index, _) = at_v.select_nth_unstable(r);
-    let pivot = (v, pivot_index);
-    let left: Vec<(u64, u32)> = e.par_iter().filter(|x| key(x) < pivot).copied().collect();
-    let right: Vec<(u64, u32)> = e.par_iter().filter(|x| key(x) > pivot).copied().collect();
-    let mid = e.par_iter().find_first(|x| key(x) == pivot).copied();
-    if let Some(mid) = mid
-        && left.len() == m
+    let pivot = ((v as u64) << 32) | pivot_index as u64;
+    // One order-preserving pass; the pivot (the largest on the left) then moves to m.
+    let (mut left, right): (Vec<_>, Vec<_>) = e.par_iter().partition(|x| key(x) <= pivot);
+    if left.len() == m + 1
+        && let Some(at) = left.par_iter().position_first(|x| key(x) == pivot)
     {
-        e[..m].copy_from_slice(&left);
-        e[m] = mid;
+        left.swap(at, m);
+        e[..=m].copy_from_slice(&left);
         e[m + 1..].copy_from_slice(&right);
     } else {
         // Unreachable (the ranks add up); fall back to the serial selection.

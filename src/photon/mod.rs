@@ -273,9 +273,10 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
     let t_build = std::time::Instant::now();
     let build = |v: &[RawPhoton], kind: Option<MapKind>, n: u64| -> KdTree<Photon> {
         let inv = 1.0 / n.max(1) as f32;
-        let sel: Vec<&RawPhoton> = v.iter().filter(|r| kind.is_none_or(|k| r.kind == k)).collect();
-        let pos: Vec<Vec3> = sel.iter().map(|r| r.pos).collect();
-        let photons = sel.iter().map(|r| Photon::new(r.power * inv, r.dir, r.normal)).collect();
+        // Parallel and order-preserving: the same maps for any thread count.
+        let sel: Vec<&RawPhoton> = v.par_iter().filter(|r| kind.is_none_or(|k| r.kind == k)).collect();
+        let pos: Vec<Vec3> = sel.par_iter().map(|r| r.pos).collect();
+        let photons = sel.par_iter().map(|r| Photon::new(r.power * inv, r.dir, r.normal)).collect();
         KdTree::build_with(&pos, photons)
     };
     let (direct, (indirect, caustic_t)) = rayon::join(
