@@ -316,7 +316,9 @@ impl Bvh {
         let t0 = (Vec3::from_array(node.min) - o) * inv_d;
         let t1 = (Vec3::from_array(node.max) - o) * inv_d;
         let tmin = t0.min(t1).max_element().max(0.0);
-        let tmax = t0.max(t1).min_element().min(t_max);
+        // Widened by 1 + 2γ₃ (Ize 2013): without it rounding can cull a flat box
+        // (an axis-aligned wall) that the ray does hit; seen on Sponza.
+        let tmax = t0.max(t1).min_element().min(t_max) * (1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5));
         // Written so a NaN (0·inf on a slab boundary) never produces a false hit skip:
         // NaN comparisons are false, and max/min above ignore NaN operands.
         if tmin <= tmax { tmin } else { f32::INFINITY }
@@ -471,6 +473,24 @@ mod tests {
             let c = uniform_sphere([unit(hash_words(&[k, 1])), unit(hash_words(&[k, 2]))]) * 0.8;
             tris.push([c, c + Vec3::new(0.3, 0.05, 0.0), c + Vec3::new(0.0, 0.3, 0.1)]);
         }
+        // An axis-aligned room of 8×8-quad walls: flat boxes, where an unwidened slab
+        // test loses hits to rounding.
+        for axis in 0..3 {
+            for side in [-1.8f32, 1.8] {
+                for (i, j) in (0..8).flat_map(|i| (0..8).map(move |j| (i, j))) {
+                    let p = |a: f32, b: f32| {
+                        let mut v = [0.0f32; 3];
+                        v[axis] = side;
+                        v[(axis + 1) % 3] = -2.0 + 0.5 * a;
+                        v[(axis + 2) % 3] = -2.0 + 0.5 * b;
+                        Vec3::from_array(v)
+                    };
+                    let (a, b) = (i as f32, j as f32);
+                    tris.push([p(a, b), p(a + 1.0, b), p(a + 1.0, b + 1.0)]);
+                    tris.push([p(a, b), p(a + 1.0, b + 1.0), p(a, b + 1.0)]);
+                }
+            }
+        }
         tris
     }
 
@@ -487,7 +507,16 @@ mod tests {
             let (mut hits, mut occluded) = (0, 0);
             for k in 0..n {
                 let o = uniform_sphere([unit(hash_words(&[k, 3])), unit(hash_words(&[k, 4]))]) * (0.2 + 1.5 * unit(hash_words(&[k, 5])));
-                let d = uniform_sphere([unit(hash_words(&[k, 6])), unit(hash_words(&[k, 7]))]);
+                let mut d = uniform_sphere([unit(hash_words(&[k, 6])), unit(hash_words(&[k, 7]))]);
+                if k % 4 == 0 {
+                    // Aim at a wall point on a grid line, where flat boxes meet.
+                    let mut v = [0.0f32; 3];
+                    let axis = (k / 4 % 3) as usize;
+                    v[axis] = if k % 8 == 0 { 1.8 } else { -1.8 };
+                    v[(axis + 1) % 3] = -2.0 + 0.5 * (hash_words(&[k, 8]) % 9) as f32;
+                    v[(axis + 2) % 3] = -2.0 + 4.0 * unit(hash_words(&[k, 9]));
+                    d = Vec3::from_array(v) - o;
+                }
                 let ray = Ray::new(o, d);
                 let a = lin.intersect(&ray, f32::INFINITY, &mut s1);
                 let b = acc.intersect(&ray, f32::INFINITY, &mut s2);
