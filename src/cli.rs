@@ -37,6 +37,12 @@ pub enum Command {
     /// Benchmarks (release builds).
     #[command(subcommand)]
     Bench(crate::bench::BenchCommand),
+    /// Statistical test suite: RR bias, discrepancy, chi-square, BRDF, convergence.
+    Stats(crate::stats::StatsArgs),
+    /// Run an experiment manifest: sweep configurations, measure them against a reference, write tables, images, plots and a summary.
+    Run(crate::experiment::RunArgs),
+    /// Combine the cells of a sharded experiment directory and write its tables, plots and summary.
+    Merge(crate::experiment::MergeArgs),
 }
 
 /// `scene` subcommands.
@@ -226,6 +232,9 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Bench(b) => crate::bench::run(b),
+        Command::Stats(a) => crate::stats::run_cli(&a),
+        Command::Run(a) => crate::experiment::run_cmd(&a),
+        Command::Merge(a) => crate::experiment::merge_cmd(&a),
         Command::Diff { test, reference, out } => {
             let a = crate::film::Film::read_exr(&test)?;
             let b = crate::film::Film::read_exr(&reference)?;

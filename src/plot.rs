@@ -148,15 +148,19 @@ where
         .margin(12)
         .x_label_area_size(60)
         .y_label_area_size(80)
-        .build_cartesian_2d(0f64..n as f64, 0f64..ymax)
+        .build_cartesian_2d(-0.5f64..n as f64 - 0.5, 0f64..ymax)
         .map_err(|e| anyhow!("{e:?}"))?;
     chart
         .configure_mesh()
         .disable_x_mesh()
-        .x_labels(n + 1)
+        .x_labels(n)
+        // Bar i is centred on x = i, so the integer ticks carry the category names.
         .x_label_formatter(&|x| {
-            let i = x.floor() as usize;
-            if (x - x.floor() - 0.5).abs() < 1e-9 { cats.get(i).cloned().unwrap_or_default() } else { String::new() }
+            if (x - x.round()).abs() < 1e-9 && *x >= -0.1 {
+                cats.get(x.round() as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
         })
         .y_desc(p.y_label.as_str())
         .label_style(("sans-serif", 13))
@@ -168,7 +172,7 @@ where
         let rects: Vec<Rectangle<(f64, f64)>> = (0..n)
             .map(|i| {
                 let v = vals.get(i).copied().unwrap_or(0.0).max(0.0);
-                let r = Rectangle::new([(i as f64 + 0.15, base[i]), (i as f64 + 0.85, base[i] + v)], color.filled());
+                let r = Rectangle::new([(i as f64 - 0.35, base[i]), (i as f64 + 0.35, base[i] + v)], color.filled());
                 base[i] += v;
                 r
             })

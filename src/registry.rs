@@ -101,7 +101,7 @@ pub fn make_integrator(cfg: &RenderConfig) -> Result<Box<dyn Integrator>> {
 /// As [`make_integrator`], with progress bars for long pre-passes unless `quiet`.
 pub fn make_integrator_with(cfg: &RenderConfig, quiet: bool) -> Result<Box<dyn Integrator>> {
     let rr = make_rr(&cfg.rr)?;
-    let max_depth = cfg.max_depth.unwrap_or(u32::MAX);
+    let max_depth = cfg.depth_limit();
     if rr.never_terminates() && cfg.max_depth.is_none() {
         bail!("rr `off` never ends a path: give a finite max_depth (--max-depth N)");
     }

@@ -3,6 +3,8 @@
 
 pub mod accel;
 pub mod embree;
+pub mod knn;
+pub mod scaling;
 
 use anyhow::Result;
 use clap::Subcommand;
@@ -14,6 +16,16 @@ pub enum BenchCommand {
     Accel(accel::AccelArgs),
     /// Embree harness vs photonlab on the same OBJs and ray sets: ratio per row.
     EmbreeCompare(embree::EmbreeArgs),
+    /// Photon kd-tree against kiddo: build and k-NN query times on the same points.
+    Knn(knn::KnnArgs),
+    /// Per-phase speed-up of a photon render from 1 to 2 threads.
+    Scaling(scaling::ScalingArgs),
+    /// Every benchmark that finishes within about ten minutes, one after another.
+    All {
+        /// One JSON object per line instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Runs a benchmark.
@@ -21,5 +33,28 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Accel(a) => accel::run(&a),
         BenchCommand::EmbreeCompare(a) => embree::run(&a),
+        BenchCommand::Knn(a) => knn::run(&a),
+        BenchCommand::Scaling(a) => scaling::run(&a),
+        BenchCommand::All { json } => run_all(json),
     }
+}
+
+/// `bench all`: each benchmark with its default (full-size) settings.
+fn run_all(json: bool) -> Result<()> {
+    for inside in [false, true] {
+        accel::run(&accel::AccelArgs {
+            obj: None,
+            builtin: Some("displaced-sphere".into()),
+            inside,
+            rays: 2_000_000,
+            threads: 1,
+            accel: vec!["bvh".into(), "bvh4".into(), "bvh8".into()],
+            builds: 1,
+            name: None,
+            json,
+        })?;
+    }
+    knn::run(&knn::KnnArgs { n: 1_000_000, queries: 20_000, threads: None, reps: 3, json })?;
+    scaling::run(&scaling::ScalingArgs { json, ..Default::default() })?;
+    Ok(())
 }

@@ -40,25 +40,18 @@ pub struct CacheEntry {
     pub irradiance: Color,
     /// Valid radius R_i.
     pub radius: f32,
-    axis: u8,
 }
 
 impl KdPoint for CacheEntry {
     fn pos(&self) -> Vec3 {
         self.pos
     }
-    fn axis(&self) -> usize {
-        self.axis as usize
-    }
-    fn set_axis(&mut self, a: usize) {
-        self.axis = a as u8;
-    }
 }
 
 impl CacheEntry {
     /// New entry.
     pub fn new(pos: Vec3, normal: Vec3, irradiance: Color, radius: f32) -> Self {
-        CacheEntry { pos, normal, irradiance, radius, axis: 0 }
+        CacheEntry { pos, normal, irradiance, radius }
     }
 }
 

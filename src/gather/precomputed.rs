@@ -23,32 +23,24 @@ pub struct IrradiancePoint {
     pub normal: Vec3,
     /// Irradiance from all photon maps.
     pub irradiance: Color,
-    axis: u8,
 }
 
 impl KdPoint for IrradiancePoint {
     fn pos(&self) -> Vec3 {
         self.pos
     }
-    fn axis(&self) -> usize {
-        self.axis as usize
-    }
-    fn set_axis(&mut self, a: usize) {
-        self.axis = a as u8;
-    }
 }
 
 /// Computes irradiance at every `stride`-th photon of `global` (in parallel; the
 /// result is independent of the thread count).
 pub fn precompute(global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) -> KdTree<IrradiancePoint> {
-    let pts: Vec<IrradiancePoint> = global
-        .points
-        .par_iter()
+    let pts: Vec<IrradiancePoint> = (0..global.len())
+        .into_par_iter()
         .step_by(stride.max(1))
-        .map(|ph| {
-            let n = ph.normal();
-            let e = with_heap(|h| estimate::irradiance(global, ph.position(), n, prm, h));
-            IrradiancePoint { pos: ph.position(), normal: n, irradiance: e, axis: 0 }
+        .map(|i| {
+            let (n, pos) = (global.points[i].normal(), global.position(i));
+            let e = with_heap(|h| estimate::irradiance(global, pos, n, prm, h));
+            IrradiancePoint { pos, normal: n, irradiance: e }
         })
         .collect();
     KdTree::build(pts)
@@ -58,7 +50,7 @@ pub fn precompute(global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) 
 /// with `n`.
 pub fn lookup(tree: &KdTree<IrradiancePoint>, p: Vec3, n: Vec3, radius: f32) -> Option<Color> {
     super::with_heap(|h| {
-        tree.knn(p, 1, radius * radius, h, &|q: &IrradiancePoint| q.normal.dot(n) >= 0.7);
+        tree.knn(p, 1, radius * radius, h, &|q: &IrradiancePoint, _| q.normal.dot(n) >= 0.7);
         h.items.first().map(|&(_, i)| tree.points[i as usize].irradiance)
     })
 }

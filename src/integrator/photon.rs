@@ -215,18 +215,18 @@ impl Integrator for PhotonIntegrator {
             caustic_photons: cfg.caustic_photons as usize,
             fixed_emit: cfg.emit_photons,
             max_emitted: cfg.max_emitted,
-            max_depth: cfg.max_depth.unwrap_or(u32::MAX),
+            max_depth: cfg.depth_limit(),
         };
         let maps = build_maps(world, emit_sampler.as_ref(), self.rr.as_ref(), &settings, self.quiet);
         for w in &maps.warnings {
             eprintln!("warning: {w}");
         }
         self.times.insert("photon_pass_s".into(), t0.elapsed().as_secs_f64());
+        self.times.insert("photon_trace_s".into(), t0.elapsed().as_secs_f64() - maps.build_s);
         let t1 = Instant::now();
-        let mut all = maps.direct.points.clone();
-        all.extend_from_slice(&maps.indirect.points);
-        all.extend_from_slice(&maps.caustic.points);
-        let global = KdTree::build(all);
+        let t_global = Instant::now();
+        let global = KdTree::merged(&[&maps.direct, &maps.indirect, &maps.caustic]);
+        self.times.insert("kdtree_build_s".into(), maps.build_s + t_global.elapsed().as_secs_f64());
         let est_global = EstimateParams::new(cfg.k as usize, max_radius, filter, cfg.disc);
         let est_caustic = EstimateParams::new(cfg.caustic_k as usize, caustic_radius, filter, cfg.disc);
         let use_pre = cfg.gather == "precomputed" || (cfg.precomputed_irradiance && cfg.gather == "irradiance_cache");
@@ -284,12 +284,10 @@ impl Integrator for PhotonIntegrator {
             m.insert("photons_indirect".into(), c.maps.indirect.len() as f64);
             m.insert("photons_caustic".into(), c.maps.caustic.len() as f64);
             m.insert("photon_rays".into(), c.maps.rays.total_rays() as f64);
-            let photon_bytes = std::mem::size_of::<crate::photon::record::Photon>();
-            m.insert("photon_bytes".into(), photon_bytes as f64);
-            m.insert(
-                "photon_map_bytes".into(),
-                ((c.maps.direct.len() + c.maps.indirect.len() + c.maps.caustic.len() + c.global.len()) * photon_bytes) as f64,
-            );
+            let bytes = c.maps.direct.memory_bytes() + c.maps.indirect.memory_bytes() + c.maps.caustic.memory_bytes();
+            let stored = c.maps.direct.len() + c.maps.indirect.len() + c.maps.caustic.len();
+            m.insert("photon_bytes".into(), bytes as f64 / stored.max(1) as f64);
+            m.insert("photon_map_bytes".into(), (bytes + c.global.memory_bytes()) as f64);
             if let Some(p) = &c.precomputed {
                 m.insert("precomputed_points".into(), p.len() as f64);
             }

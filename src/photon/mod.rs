@@ -100,6 +100,8 @@ pub struct PhotonMaps {
     pub rays: TraversalStats,
     /// Warnings (e.g. a map that could not be filled).
     pub warnings: Vec<String>,
+    /// Seconds spent building the three kd-trees (part of the pass).
+    pub build_s: f64,
 }
 
 /// A photon before normalisation by the emitted count.
@@ -268,15 +270,20 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
             ));
         }
     }
-    let pack = |v: &[RawPhoton], kind: Option<MapKind>, n: u64| -> Vec<Photon> {
+    let t_build = std::time::Instant::now();
+    let build = |v: &[RawPhoton], kind: Option<MapKind>, n: u64| -> KdTree<Photon> {
         let inv = 1.0 / n.max(1) as f32;
-        v.iter().filter(|r| kind.is_none_or(|k| r.kind == k)).map(|r| Photon::new(r.pos, r.power * inv, r.dir, r.normal)).collect()
+        // Parallel and order-preserving: the same maps for any thread count.
+        let sel: Vec<&RawPhoton> = v.par_iter().filter(|r| kind.is_none_or(|k| r.kind == k)).collect();
+        let pos: Vec<Vec3> = sel.par_iter().map(|r| r.pos).collect();
+        let photons = sel.par_iter().map(|r| Photon::new(r.power * inv, r.dir, r.normal)).collect();
+        KdTree::build_with(&pos, photons)
     };
-    let direct = pack(&global, Some(MapKind::Direct), n_global);
-    let indirect = pack(&global, Some(MapKind::Indirect), n_global);
-    let caustic_v = pack(&caustic, None, n_caustic);
-    let (direct, (indirect, caustic_t)) =
-        rayon::join(|| KdTree::build(direct), || rayon::join(|| KdTree::build(indirect), || KdTree::build(caustic_v)));
+    let (direct, (indirect, caustic_t)) = rayon::join(
+        || build(&global, Some(MapKind::Direct), n_global),
+        || rayon::join(|| build(&global, Some(MapKind::Indirect), n_global), || build(&caustic, None, n_caustic)),
+    );
+    let build_s = t_build.elapsed().as_secs_f64();
     PhotonMaps {
         direct,
         indirect,
@@ -286,6 +293,7 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
         emitted_total: emitted,
         rays,
         warnings,
+        build_s,
     }
 }
 

@@ -1,11 +1,12 @@
-//! Compact photon record: 20 bytes per photon.
+//! Compact photon record: 8 bytes of payload; the kd-tree keeps each photon's
+//! position (8 bytes, quantised, with its split axis), so a stored photon takes
+//! 16 bytes in all.
 //!
 //! | bytes | field |
 //! |---|---|
-//! | 12 | position, 3 × f32 |
 //! | 4 | power, RGBE shared exponent (Ward), ~0.4 % precision of the largest channel |
 //! | 2 | incoming direction, octahedral 8 + 8 bits |
-//! | 2 | surface normal (octahedral 7 + 7 bits) and the kd-tree split axis (2 bits) |
+//! | 2 | surface normal, octahedral 8 + 8 bits |
 
 use crate::math::Color;
 use glam::{Vec2, Vec3};
@@ -14,14 +15,12 @@ use glam::{Vec2, Vec3};
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Photon {
-    /// Position.
-    pub pos: [f32; 3],
     rgbe: [u8; 4],
     dir: u16,
-    normal_axis: u16,
+    normal: u16,
 }
 
-const _: () = assert!(std::mem::size_of::<Photon>() == 20);
+const _: () = assert!(std::mem::size_of::<Photon>() == 8);
 
 /// Shared-exponent RGB encoding (Ward's RGBE).
 pub fn encode_rgbe(c: Color) -> [u8; 4] {
@@ -84,22 +83,13 @@ fn dequant(q: u16, bits: u32) -> f32 {
 }
 
 impl Photon {
-    /// Packs a photon. `dir` points back towards where the photon came from; `normal`
-    /// is the surface normal on the side the photon arrived from.
-    pub fn new(pos: Vec3, power: Color, dir: Vec3, normal: Vec3) -> Self {
+    /// Packs a photon (its position goes to the kd-tree). `dir` points back towards
+    /// where the photon came from; `normal` is the surface normal on the side the
+    /// photon arrived from.
+    pub fn new(power: Color, dir: Vec3, normal: Vec3) -> Self {
         let d = oct_encode(dir);
         let n = oct_encode(normal);
-        Photon {
-            pos: pos.to_array(),
-            rgbe: encode_rgbe(power),
-            dir: quant(d.x, 8) | (quant(d.y, 8) << 8),
-            normal_axis: quant(n.x, 7) | (quant(n.y, 7) << 7),
-        }
-    }
-    /// Position.
-    #[inline]
-    pub fn position(&self) -> Vec3 {
-        Vec3::from_array(self.pos)
+        Photon { rgbe: encode_rgbe(power), dir: quant(d.x, 8) | (quant(d.y, 8) << 8), normal: quant(n.x, 8) | (quant(n.y, 8) << 8) }
     }
     /// Power (flux).
     #[inline]
@@ -118,22 +108,7 @@ impl Photon {
     /// Unit surface normal on the side the photon arrived from.
     #[inline]
     pub fn normal(&self) -> Vec3 {
-        oct_decode(Vec2::new(dequant(self.normal_axis & 0x7F, 7), dequant((self.normal_axis >> 7) & 0x7F, 7)))
-    }
-}
-
-impl crate::photon::kdtree::KdPoint for Photon {
-    #[inline]
-    fn pos(&self) -> Vec3 {
-        Vec3::from_array(self.pos)
-    }
-    #[inline]
-    fn axis(&self) -> usize {
-        (self.normal_axis >> 14) as usize
-    }
-    #[inline]
-    fn set_axis(&mut self, a: usize) {
-        self.normal_axis = (self.normal_axis & 0x3FFF) | ((a as u16 & 3) << 14);
+        oct_decode(Vec2::new(dequant(self.normal & 0xFF, 8), dequant(self.normal >> 8, 8)))
     }
 }
 
@@ -141,7 +116,6 @@ impl crate::photon::kdtree::KdPoint for Photon {
 mod tests {
     use super::*;
     use crate::math::uniform_sphere;
-    use crate::photon::kdtree::KdPoint;
 
     #[test]
     fn round_trips_within_quantisation() {
@@ -150,14 +124,11 @@ mod tests {
             let d = uniform_sphere(u);
             let n = uniform_sphere([u[1], u[0]]);
             let c = Color::new(0.3 + u[0], 0.01 * u[1], 2.0) * 1e-4;
-            let mut p = Photon::new(Vec3::new(1.0, -2.0, 3.5), c, d, n);
-            p.set_axis(2);
-            assert_eq!(p.axis(), 2);
+            let p = Photon::new(c, d, n);
             assert!(p.direction().dot(d) > 0.999, "dir {d} -> {}", p.direction());
-            assert!(p.normal().dot(n) > 0.995, "normal {n} -> {}", p.normal());
+            assert!(p.normal().dot(n) > 0.999, "normal {n} -> {}", p.normal());
             let q = p.power();
             assert!((q - c).abs().max_element() <= c.max_element() / 128.0, "{c} -> {q}");
-            assert_eq!(p.position(), Vec3::new(1.0, -2.0, 3.5));
         }
         assert_eq!(decode_rgbe(encode_rgbe(Color::ZERO)), Color::ZERO);
     }

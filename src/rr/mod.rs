@@ -33,6 +33,11 @@ pub trait RussianRoulette: Send + Sync {
     fn never_terminates(&self) -> bool {
         false
     }
+    /// Weight of a survivor of probability `q`: 1/q keeps estimators unbiased. Only
+    /// the statistics suite's deliberately broken control overrides it.
+    fn survivor_weight(&self, q: f32) -> f32 {
+        1.0 / q
+    }
 }
 
 /// Applies a policy: returns the weight a survivor is multiplied by (1/q), or `None`
@@ -43,7 +48,7 @@ pub fn roulette(policy: &dyn RussianRoulette, ctx: &RrContext, u: f32) -> Option
     if q >= 1.0 {
         return Some(1.0);
     }
-    if q <= 0.0 || u >= q { None } else { Some(1.0 / q) }
+    if q <= 0.0 || u >= q { None } else { Some(policy.survivor_weight(q)) }
 }
 
 /// Clamps a probability into [0, 1], mapping NaN to 0.

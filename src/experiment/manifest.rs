@@ -1,0 +1,887 @@
+//! Experiment manifests: parsing, validation and expansion into cells.
+//!
+//! A manifest names a scene, a resolution, a reference, a `[base]` configuration and
+//! either a `[sweep]` (cartesian product of axes, with `exclude` rules and `repeats`)
+//! or a list of named `[[configs]]`. Every key of `[base]`, of a sweep axis and of a
+//! named configuration is a [`RenderConfig`] key: values are merged as TOML and
+//! deserialised by the same code that rejects unknown keys everywhere else, so a new
+//! integrator or strategy needs no change here. Every cell is validated
+//! ([`registry::validate`]) before anything renders; errors name `file:line`.
+
+use crate::config::RenderConfig;
+use crate::light::LightDesc;
+use crate::math::Color;
+use crate::registry;
+use crate::scene::obj::load_obj;
+use crate::scene::{Placement, Scene, builtin::builtin, loader::load_scene};
+use anyhow::{Result, anyhow, bail};
+use glam::Vec3;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use toml::{Spanned, Value};
+
+/// Seed of the reference render when `[reference]` does not set one: distinct from
+/// the cells' default seed so the reference's noise is not correlated with theirs.
+pub const REFERENCE_SEED: u64 = 0x5EF_E2E4_CE00;
+
+/// Keys that belong at the top level of a manifest, not in a configuration.
+const TOP_LEVEL_ONLY: &[&str] = &["resolution"];
+
+type SpannedTable = BTreeMap<String, Spanned<Value>>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawManifest {
+    name: Option<String>,
+    description: Option<String>,
+    scene: Spanned<Value>,
+    resolution: Spanned<[u32; 2]>,
+    repeats: Option<Spanned<u32>>,
+    reference: Spanned<SpannedTable>,
+    base: Option<Spanned<SpannedTable>>,
+    sweep: Option<Spanned<SpannedTable>>,
+    configs: Option<Spanned<Vec<Spanned<SpannedTable>>>>,
+}
+
+/// Where the reference image comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ReferenceSpec {
+    /// Rendered with this configuration (cached by content hash).
+    Render(Box<RenderConfig>),
+    /// Read from an EXR file.
+    File(PathBuf),
+}
+
+/// Where the scene comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SceneSource {
+    /// A built-in scene by name.
+    Builtin(String),
+    /// A scene TOML file.
+    File(PathBuf),
+    /// Nothing: meshes, lights and camera come from the manifest's `[scene]` table.
+    Empty,
+}
+
+/// A mesh added to the scene by the manifest (e.g. an external model).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// OBJ file, relative to the manifest's directory or absolute.
+    pub obj: PathBuf,
+    /// Scale the model uniformly so its bounding box is this tall (scene units).
+    pub fit_height: Option<f32>,
+    /// Uniform scale (when `fit_height` is absent); default 1.
+    pub scale: Option<f32>,
+    /// Where the bottom centre of the model's bounding box goes (with `fit_height`),
+    /// or the translation (without).
+    #[serde(default)]
+    pub at: [f32; 3],
+    /// Rotation about +y in degrees.
+    #[serde(default)]
+    pub rotate_y_deg: f32,
+    /// Replace the model's materials by a diffuse albedo.
+    pub albedo: Option<[f32; 3]>,
+    /// Where to download the model (shown when the file is missing).
+    pub download: Option<String>,
+}
+
+/// A camera given in the manifest (replaces the base scene's).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Point looked at.
+    pub look_at: [f32; 3],
+    /// Up vector.
+    #[serde(default = "up_y")]
+    pub up: [f32; 3],
+    /// Full vertical field of view in degrees.
+    pub fov_y_deg: f32,
+}
+
+fn up_y() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+/// A light added by the manifest.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum LightSpec {
+    /// Point light (intensity W/sr).
+    Point {
+        /// Position.
+        position: [f32; 3],
+        /// Radiant intensity.
+        intensity: [f32; 3],
+    },
+    /// Directional light (irradiance W/m² on a surface facing it).
+    Directional {
+        /// Direction the light travels.
+        direction: [f32; 3],
+        /// Irradiance.
+        irradiance: [f32; 3],
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneTable {
+    builtin: Option<String>,
+    file: Option<PathBuf>,
+    camera: Option<CameraSpec>,
+    #[serde(default)]
+    mesh: Vec<MeshSpec>,
+    #[serde(default)]
+    light: Vec<LightSpec>,
+}
+
+/// The scene of a manifest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneSpec {
+    /// Base scene.
+    pub source: SceneSource,
+    /// Camera replacing the base scene's.
+    pub camera: Option<CameraSpec>,
+    /// Added meshes.
+    pub meshes: Vec<MeshSpec>,
+    /// Added lights.
+    pub lights: Vec<LightSpec>,
+    /// `file:line` of the `scene` key, for messages.
+    pub at: String,
+}
+
+/// One render of an experiment: a configuration and a repeat.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    /// Position in expansion order (shards take `index % N`).
+    pub index: usize,
+    /// Index of the configuration (cells of one configuration differ only in seed).
+    pub config_index: usize,
+    /// Index into [`Manifest::scenes`].
+    pub scene: usize,
+    /// File stem of this cell's outputs (unique within the experiment).
+    pub stem: String,
+    /// Human-readable configuration label (`gather=direct photons=20000` or a name).
+    pub label: String,
+    /// Strategy: the configuration's non-numeric axis values (lines in plots).
+    pub group: String,
+    /// The swept values of this configuration in axis order (`name` for named configurations).
+    pub values: Vec<(String, Value)>,
+    /// Repeat number (0-based); the seed is the configuration's seed + repeat.
+    pub repeat: u32,
+    /// The complete configuration rendered.
+    pub config: RenderConfig,
+}
+
+/// A parsed, validated and expanded manifest.
+#[derive(Clone, Debug)]
+pub struct Manifest {
+    /// The manifest file.
+    pub path: PathBuf,
+    /// Directory relative paths are resolved against.
+    pub dir: PathBuf,
+    /// Experiment name (default: the file stem).
+    pub name: String,
+    /// Free text shown in the summary.
+    pub description: String,
+    /// The manifest text (copied next to the results).
+    pub text: String,
+    /// Scenes (several make `scene` the outermost axis).
+    pub scenes: Vec<SceneSpec>,
+    /// Image size.
+    pub resolution: [u32; 2],
+    /// Reference.
+    pub reference: ReferenceSpec,
+    /// Swept keys in manifest order (`name` for named configurations).
+    pub axes: Vec<String>,
+    /// Axes whose values are all numbers (candidates for convergence plots).
+    pub numeric_axes: Vec<String>,
+    /// Repeats (independent seeds) per configuration.
+    pub repeats: u32,
+    /// All cells in expansion order.
+    pub cells: Vec<Cell>,
+}
+
+/// 1-based line and column of a byte offset.
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+struct Loc<'a> {
+    file: &'a Path,
+    text: &'a str,
+}
+
+impl Loc<'_> {
+    fn at(&self, span: std::ops::Range<usize>) -> String {
+        let (l, _) = line_col(self.text, span.start);
+        format!("{}:{l}", self.file.display())
+    }
+}
+
+/// Text of a value for labels and file names (strings without quotes).
+pub fn value_text(v: &Value) -> String {
+    match v {
+        Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+/// Equality of TOML values where `1` and `1.0` are equal.
+pub fn value_eq(a: &Value, b: &Value) -> bool {
+    match (a, b) {
+        (Value::Integer(x), Value::Float(y)) | (Value::Float(y), Value::Integer(x)) => *x as f64 == *y,
+        _ => a == b,
+    }
+}
+
+fn slug(s: &str) -> String {
+    let out: String = s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '.' || c == '-' { c } else { '_' }).collect();
+    out.trim_matches('_').to_string()
+}
+
+/// Checks one key/value pair against [`RenderConfig`] (unknown key or wrong type).
+fn check_key(key: &str, value: &Value) -> Result<(), String> {
+    if TOP_LEVEL_ONLY.contains(&key) {
+        return Err(format!("`{key}` is set once at the top level of the manifest, not per configuration"));
+    }
+    let mut t = toml::Table::new();
+    t.insert(key.to_string(), value.clone());
+    t.try_into::<RenderConfig>().map(|_| ()).map_err(|e| e.message().replace('\n', " "))
+}
+
+/// Builds a configuration from layers of key/values (later layers win).
+fn build_config(layers: &[&[(String, Value)]]) -> Result<RenderConfig, String> {
+    let mut t = toml::Table::new();
+    for layer in layers {
+        for (k, v) in *layer {
+            t.insert(k.clone(), v.clone());
+        }
+    }
+    t.try_into::<RenderConfig>().map_err(|e| e.message().replace('\n', " "))
+}
+
+/// One configuration before repeats: its key/values, label and where it was written.
+struct ConfigDraft {
+    values: Vec<(String, Value)>,
+    /// Span per value (for blaming a line).
+    spans: Vec<std::ops::Range<usize>>,
+    label: String,
+    group: String,
+    stem: String,
+    /// The whole entry's span (named configuration) or the sweep's.
+    span: std::ops::Range<usize>,
+    /// For named configurations: key/values other than `name`.
+    overrides: Vec<(String, Value)>,
+}
+
+impl Manifest {
+    /// Reads, validates and expands a manifest file.
+    pub fn load(path: &Path) -> Result<Manifest> {
+        let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: cannot read manifest: {e}", path.display()))?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Manifest::parse(&text, path, &dir)
+    }
+
+    /// Parses manifest text; `path` is used in messages, `dir` for relative paths.
+    pub fn parse(text: &str, path: &Path, dir: &Path) -> Result<Manifest> {
+        let file = path.display();
+        let raw: RawManifest = toml::from_str(text).map_err(|e| {
+            let msg = e.message().replace('\n', " ");
+            match e.span() {
+                Some(s) => anyhow!("{file}:{}: {msg}", line_col(text, s.start).0),
+                None => anyhow!("{file}: {msg}"),
+            }
+        })?;
+        let loc = Loc { file: path, text };
+        let name = raw.name.clone().unwrap_or_else(|| path.file_stem().map_or("experiment".into(), |s| s.to_string_lossy().into_owned()));
+        if slug(&name) != name || name.is_empty() {
+            bail!("{file}: name `{name}` must be letters, digits, `.`, `-` or `_` (it names the results directory)");
+        }
+        let resolution = *raw.resolution.get_ref();
+        if resolution[0] == 0 || resolution[1] == 0 {
+            bail!("{}: resolution must be positive, got {}x{}", loc.at(raw.resolution.span()), resolution[0], resolution[1]);
+        }
+        let res_value = Value::Array(vec![Value::Integer(resolution[0] as i64), Value::Integer(resolution[1] as i64)]);
+        let scenes = match raw.scene.get_ref() {
+            Value::Array(list) => {
+                if list.is_empty() {
+                    bail!("{}: scene: empty list", loc.at(raw.scene.span()));
+                }
+                let mut v: Vec<SceneSpec> = Vec::new();
+                for x in list {
+                    let sc = parse_scene(&Spanned::new(raw.scene.span(), x.clone()), &loc, dir)?;
+                    if v.iter().any(|o| o.name() == sc.name()) {
+                        bail!("{}: scene `{}` is listed twice", loc.at(raw.scene.span()), sc.name());
+                    }
+                    v.push(sc);
+                }
+                v
+            }
+            _ => vec![parse_scene(&raw.scene, &loc, dir)?],
+        };
+
+        // Reference.
+        let reference = {
+            let r = raw.reference.get_ref();
+            if let Some(f) = r.get("file") {
+                if scenes.len() > 1 {
+                    bail!(
+                        "{}: [reference] file: one reference file cannot serve {} scenes; render the references instead",
+                        loc.at(f.span()),
+                        scenes.len()
+                    );
+                }
+                if let Some((k, v)) = r.iter().find(|(k, _)| k.as_str() != "file") {
+                    bail!("{}: [reference] `{k}`: a reference read from `file` takes no render settings", loc.at(v.span()));
+                }
+                let Value::String(s) = f.get_ref() else { bail!("{}: [reference] file must be a string path", loc.at(f.span())) };
+                ReferenceSpec::File(dir.join(s))
+            } else {
+                let mut kv = Vec::new();
+                for (k, v) in r {
+                    check_key(k, v.get_ref()).map_err(|e| anyhow!("{}: [reference] {k}: {e}", loc.at(v.span())))?;
+                    kv.push((k.clone(), v.get_ref().clone()));
+                }
+                if !r.contains_key("seed") {
+                    kv.push(("seed".into(), Value::Integer(REFERENCE_SEED as i64)));
+                }
+                kv.push(("resolution".into(), res_value.clone()));
+                let cfg = build_config(&[&kv]).map_err(|e| anyhow!("{}: [reference]: {e}", loc.at(raw.reference.span())))?;
+                registry::validate(&cfg).map_err(|e| anyhow!("{}: [reference]: {e}", loc.at(raw.reference.span())))?;
+                ReferenceSpec::Render(Box::new(cfg))
+            }
+        };
+
+        // Base.
+        let mut base: Vec<(String, Value)> = Vec::new();
+        if let Some(b) = &raw.base {
+            let mut entries: Vec<(&String, &Spanned<Value>)> = b.get_ref().iter().collect();
+            entries.sort_by_key(|(_, v)| v.span().start);
+            for (k, v) in entries {
+                check_key(k, v.get_ref()).map_err(|e| anyhow!("{}: [base] {k}: {e}", loc.at(v.span())))?;
+                base.push((k.clone(), v.get_ref().clone()));
+            }
+        }
+
+        let mut repeats = raw.repeats.as_ref().map(|r| (*r.get_ref(), r.span()));
+        let (drafts, axes, numeric_axes) = match (&raw.sweep, &raw.configs) {
+            (Some(s), Some(c)) => bail!(
+                "{}: a manifest has either a [sweep] or a list of [[configs]], not both (the [sweep] is at {})",
+                loc.at(c.span()),
+                loc.at(s.span())
+            ),
+            (Some(s), None) => expand_sweep(s, &loc, &mut repeats)?,
+            (None, Some(c)) => named_configs(c, &loc)?,
+            (None, None) => {
+                let d = ConfigDraft {
+                    values: vec![],
+                    spans: vec![],
+                    label: "base".into(),
+                    group: "base".into(),
+                    stem: "base".into(),
+                    span: 0..0,
+                    overrides: vec![],
+                };
+                (vec![d], vec![], vec![])
+            }
+        };
+        let (repeats, repeats_span) = repeats.unwrap_or((1, 0..0));
+        if repeats == 0 {
+            bail!("{}: repeats must be at least 1", loc.at(repeats_span));
+        }
+
+        // Build and validate every cell before anything renders.
+        let mut configs = Vec::new();
+        let mut stems: BTreeMap<String, usize> = BTreeMap::new();
+        let res_layer = vec![("resolution".to_string(), res_value.clone())];
+        for (ci, d) in drafts.iter().enumerate() {
+            let own: &[(String, Value)] = if d.overrides.is_empty() { &d.values } else { &d.overrides };
+            let cfg = build_config(&[&base, own, &res_layer])
+                .map_err(|e| anyhow!("{}: configuration `{}`: {e}", loc.at(d.span.clone()), d.label))?;
+            if let Err(e) = registry::validate(&cfg) {
+                // Blame the first swept value that is invalid on its own over the base,
+                // else the configuration (the combination is what fails).
+                let mut blame = d.span.clone();
+                for (i, kv) in own.iter().enumerate() {
+                    let single = build_config(&[&base, std::slice::from_ref(kv), &res_layer]);
+                    if single.map(|c| registry::validate(&c).is_err()).unwrap_or(true) {
+                        blame = d.spans.get(i).cloned().unwrap_or(blame);
+                        break;
+                    }
+                }
+                bail!("{}: configuration `{}`: {e}", loc.at(blame), d.label);
+            }
+            let mut stem = d.stem.clone();
+            let n = stems.entry(stem.clone()).or_insert(0);
+            *n += 1;
+            if *n > 1 {
+                stem = format!("{stem}_{ci}");
+            }
+            configs.push((stem, cfg));
+        }
+        // Several scenes: the scene is the outermost axis of every configuration.
+        let multi = scenes.len() > 1;
+        let mut cells = Vec::new();
+        for (si, sc) in scenes.iter().enumerate() {
+            for (di, (d, (stem, cfg))) in drafts.iter().zip(&configs).enumerate() {
+                let (mut label, mut group, mut stem, mut values) = (d.label.clone(), d.group.clone(), stem.clone(), d.values.clone());
+                if multi {
+                    let tag = format!("scene={}", sc.name());
+                    label = if d.values.is_empty() { tag.clone() } else { format!("{tag} {label}") };
+                    group = if d.values.is_empty() || group == "all" { tag.clone() } else { format!("{tag} {group}") };
+                    stem = format!("scene-{}_{stem}", slug(&sc.name()));
+                    values.insert(0, ("scene".into(), Value::String(sc.name())));
+                }
+                for r in 0..repeats {
+                    let mut c = cfg.clone();
+                    c.seed = cfg.seed.wrapping_add(r as u64);
+                    cells.push(Cell {
+                        index: cells.len(),
+                        config_index: si * drafts.len() + di,
+                        scene: si,
+                        stem: format!("{stem}_r{r}"),
+                        label: label.clone(),
+                        group: group.clone(),
+                        values: values.clone(),
+                        repeat: r,
+                        config: c,
+                    });
+                }
+            }
+        }
+        let mut axes = axes;
+        if multi {
+            axes.insert(0, "scene".into());
+        }
+        if cells.is_empty() {
+            bail!("{file}: every configuration is excluded: nothing to run");
+        }
+        Ok(Manifest {
+            path: path.to_path_buf(),
+            dir: dir.to_path_buf(),
+            name,
+            description: raw.description.unwrap_or_default(),
+            text: text.to_string(),
+            scenes,
+            resolution,
+            reference,
+            axes,
+            numeric_axes,
+            repeats,
+            cells,
+        })
+    }
+
+    /// Number of configurations (cells / repeats).
+    pub fn configurations(&self) -> usize {
+        self.cells.last().map_or(0, |c| c.config_index + 1)
+    }
+}
+
+type Expanded = (Vec<ConfigDraft>, Vec<String>, Vec<String>);
+
+fn expand_sweep(s: &Spanned<SpannedTable>, loc: &Loc, repeats: &mut Option<(u32, std::ops::Range<usize>)>) -> Result<Expanded> {
+    let mut axes: Vec<(String, Vec<Value>, std::ops::Range<usize>)> = Vec::new();
+    let mut exclude: Option<&Spanned<Value>> = None;
+    let mut entries: Vec<(&String, &Spanned<Value>)> = s.get_ref().iter().collect();
+    // Axes expand in the order they are written (the first varies slowest).
+    entries.sort_by_key(|(_, v)| v.span().start);
+    for (k, v) in entries {
+        let at = loc.at(v.span());
+        match k.as_str() {
+            "exclude" => exclude = Some(v),
+            "repeats" => {
+                if let Some((_, span)) = repeats {
+                    bail!("{at}: repeats is set twice (also at {})", loc.at(span.clone()));
+                }
+                let n = v.get_ref().as_integer().filter(|n| (1..=u32::MAX as i64).contains(n));
+                let Some(n) = n else { bail!("{at}: [sweep] repeats must be a whole number >= 1") };
+                *repeats = Some((n as u32, v.span()));
+            }
+            _ => {
+                let Value::Array(vals) = v.get_ref() else {
+                    bail!("{at}: [sweep] {k}: an axis is a list of values, e.g. {k} = [{}] (a single setting goes in [base])", v.get_ref())
+                };
+                if vals.is_empty() {
+                    bail!("{at}: [sweep] {k}: empty axis (give at least one value)");
+                }
+                for x in vals {
+                    check_key(k, x).map_err(|e| anyhow!("{at}: [sweep] {k} = {x}: {e}"))?;
+                }
+                for (i, x) in vals.iter().enumerate() {
+                    if vals[..i].iter().any(|y| value_eq(x, y)) {
+                        bail!("{at}: [sweep] {k}: value {x} appears twice");
+                    }
+                }
+                axes.push((k.clone(), vals.clone(), v.span()));
+            }
+        }
+    }
+    if axes.is_empty() {
+        bail!("{}: [sweep] has no axes", loc.at(s.span()));
+    }
+    // Exclude rules: tables of axis = value; a configuration matching every entry of
+    // one rule is skipped.
+    let mut rules: Vec<Vec<(usize, Value)>> = Vec::new();
+    if let Some(ex) = exclude {
+        let at = loc.at(ex.span());
+        let Value::Array(list) = ex.get_ref() else {
+            bail!("{at}: [sweep] exclude must be a list of tables, e.g. [{{ gather = \"direct\", photons = 1000 }}]")
+        };
+        for (ri, r) in list.iter().enumerate() {
+            let Value::Table(t) = r else { bail!("{at}: exclude rule {}: must be a table like {{ key = value }}", ri + 1) };
+            if t.is_empty() {
+                bail!("{at}: exclude rule {} is empty (it would exclude everything)", ri + 1);
+            }
+            let mut rule = Vec::new();
+            for (k, v) in t {
+                let Some(ai) = axes.iter().position(|a| &a.0 == k) else {
+                    bail!(
+                        "{at}: exclude rule {}: `{k}` is not a sweep axis (axes: {})",
+                        ri + 1,
+                        axes.iter().map(|a| a.0.as_str()).collect::<Vec<_>>().join(", ")
+                    )
+                };
+                if !axes[ai].1.iter().any(|x| value_eq(x, v)) {
+                    bail!("{at}: exclude rule {}: {k} = {v} is not a value of the axis", ri + 1);
+                }
+                rule.push((ai, v.clone()));
+            }
+            rules.push(rule);
+        }
+    }
+    let numeric: Vec<bool> = axes.iter().map(|a| a.1.iter().all(|v| matches!(v, Value::Integer(_) | Value::Float(_)))).collect();
+    let total: usize = axes.iter().map(|a| a.1.len()).product();
+    let mut drafts = Vec::new();
+    for flat in 0..total {
+        // Mixed-radix digits, the last axis varying fastest.
+        let mut idx = vec![0usize; axes.len()];
+        let mut rem = flat;
+        for (i, a) in axes.iter().enumerate().rev() {
+            idx[i] = rem % a.1.len();
+            rem /= a.1.len();
+        }
+        if rules.iter().any(|rule| rule.iter().all(|(ai, v)| value_eq(&axes[*ai].1[idx[*ai]], v))) {
+            continue;
+        }
+        let values: Vec<(String, Value)> = axes.iter().zip(&idx).map(|(a, &i)| (a.0.clone(), a.1[i].clone())).collect();
+        let label = values.iter().map(|(k, v)| format!("{k}={}", value_text(v))).collect::<Vec<_>>().join(" ");
+        let group = {
+            let g: Vec<String> =
+                values.iter().zip(&numeric).filter(|(_, n)| !**n).map(|((k, v), _)| format!("{k}={}", value_text(v))).collect();
+            if g.is_empty() { "all".to_string() } else { g.join(" ") }
+        };
+        let stem = values.iter().map(|(k, v)| format!("{}-{}", slug(k), slug(&value_text(v)))).collect::<Vec<_>>().join("_");
+        drafts.push(ConfigDraft {
+            spans: axes.iter().map(|a| a.2.clone()).collect(),
+            values,
+            label,
+            group,
+            stem,
+            span: s.span(),
+            overrides: vec![],
+        });
+    }
+    let names = axes.iter().map(|a| a.0.clone()).collect();
+    let numeric_axes = axes.iter().zip(&numeric).filter(|(a, n)| **n && a.1.len() >= 2).map(|(a, _)| a.0.clone()).collect();
+    Ok((drafts, names, numeric_axes))
+}
+
+fn named_configs(c: &Spanned<Vec<Spanned<SpannedTable>>>, loc: &Loc) -> Result<Expanded> {
+    if c.get_ref().is_empty() {
+        bail!("{}: [[configs]] is empty", loc.at(c.span()));
+    }
+    let mut drafts: Vec<ConfigDraft> = Vec::new();
+    for (i, entry) in c.get_ref().iter().enumerate() {
+        let at = loc.at(entry.span());
+        let t = entry.get_ref();
+        let name = match t.get("name").map(|v| v.get_ref()) {
+            Some(Value::String(s)) if !s.trim().is_empty() => s.clone(),
+            _ => bail!("{at}: [[configs]] entry {} needs a `name = \"...\"`", i + 1),
+        };
+        if drafts.iter().any(|d| d.label == name) {
+            bail!("{at}: configuration name `{name}` is used twice");
+        }
+        let mut entries: Vec<(&String, &Spanned<Value>)> = t.iter().filter(|(k, _)| k.as_str() != "name").collect();
+        entries.sort_by_key(|(_, v)| v.span().start);
+        let mut overrides = Vec::new();
+        let mut spans = Vec::new();
+        for (k, v) in entries {
+            check_key(k, v.get_ref()).map_err(|e| anyhow!("{}: [[configs]] `{name}` {k}: {e}", loc.at(v.span())))?;
+            overrides.push((k.clone(), v.get_ref().clone()));
+            spans.push(v.span());
+        }
+        drafts.push(ConfigDraft {
+            values: vec![("name".into(), Value::String(name.clone()))],
+            spans,
+            group: name.clone(),
+            stem: slug(&name),
+            label: name,
+            span: entry.span(),
+            overrides,
+        });
+    }
+    Ok((drafts, vec!["name".into()], vec![]))
+}
+
+fn parse_scene(v: &Spanned<Value>, loc: &Loc, dir: &Path) -> Result<SceneSpec> {
+    let at = loc.at(v.span());
+    match v.get_ref() {
+        Value::String(s) => {
+            let source =
+                if s.ends_with(".toml") || s.contains('/') { SceneSource::File(dir.join(s)) } else { SceneSource::Builtin(s.clone()) };
+            if let SceneSource::Builtin(b) = &source {
+                builtin_exists(b).map_err(|e| anyhow!("{at}: scene: {e}"))?;
+            }
+            Ok(SceneSpec { source, camera: None, meshes: vec![], lights: vec![], at })
+        }
+        Value::Table(t) => {
+            let st: SceneTable = t.clone().try_into().map_err(|e| anyhow!("{at}: [scene]: {}", e.message().replace('\n', " ")))?;
+            let source = match (st.builtin, st.file) {
+                (Some(_), Some(_)) => bail!("{at}: [scene]: give `builtin` or `file`, not both"),
+                (Some(b), None) => {
+                    builtin_exists(&b).map_err(|e| anyhow!("{at}: [scene]: {e}"))?;
+                    SceneSource::Builtin(b)
+                }
+                (None, Some(f)) => SceneSource::File(dir.join(f)),
+                (None, None) => SceneSource::Empty,
+            };
+            if source == SceneSource::Empty && st.camera.is_none() {
+                bail!("{at}: [scene]: without a `builtin` or `file` base scene, a [scene.camera] is required");
+            }
+            let meshes = st.mesh.into_iter().map(|mut m| {
+                m.obj = dir.join(&m.obj);
+                m
+            });
+            Ok(SceneSpec { source, camera: st.camera, meshes: meshes.collect(), lights: st.light, at })
+        }
+        other => bail!("{at}: scene must be a built-in name, a scene file path or a [scene] table, got {other}"),
+    }
+}
+
+fn builtin_exists(name: &str) -> Result<()> {
+    if crate::scene::builtin::BUILTINS.contains(&name) {
+        Ok(())
+    } else {
+        bail!(
+            "unknown built-in scene `{name}` (known: {}; a scene file path must end in .toml)",
+            crate::scene::builtin::BUILTINS.join(", ")
+        )
+    }
+}
+
+impl SceneSpec {
+    /// Short name: the built-in's name, the scene file's stem, or `scene`.
+    pub fn name(&self) -> String {
+        match &self.source {
+            SceneSource::Builtin(b) => b.clone(),
+            SceneSource::File(p) => p.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned()),
+            SceneSource::Empty => "scene".into(),
+        }
+    }
+
+    /// Checks that every file the scene needs exists (before anything renders).
+    pub fn check_files(&self) -> Result<()> {
+        if let SceneSource::File(p) = &self.source
+            && !p.is_file()
+        {
+            bail!("{}: scene file {} not found", self.at, p.display());
+        }
+        for m in &self.meshes {
+            if !m.obj.is_file() {
+                let hint =
+                    m.download.as_ref().map(|d| format!(" — download it from {d} (see README, \"## Experiments\")")).unwrap_or_default();
+                bail!("{}: model {} not found{hint}; set its path in the manifest's [[scene.mesh]] obj", self.at, m.obj.display());
+            }
+        }
+        Ok(())
+    }
+
+    /// Builds the scene.
+    pub fn load(&self, resolution: [u32; 2]) -> Result<Scene> {
+        self.check_files()?;
+        let mut scene = match &self.source {
+            SceneSource::Builtin(b) => builtin(b)?,
+            SceneSource::File(p) => load_scene(p)?,
+            SceneSource::Empty => {
+                let c = self.camera.as_ref().ok_or_else(|| anyhow!("{}: [scene] needs a camera", self.at))?;
+                let cam = crate::camera::Camera::new(
+                    Vec3::from_array(c.eye),
+                    Vec3::from_array(c.look_at),
+                    Vec3::from_array(c.up),
+                    c.fov_y_deg,
+                    resolution[0],
+                    resolution[1],
+                )
+                .map_err(|e| anyhow!("{}: [scene.camera]: {e}", self.at))?;
+                Scene::new("scene", cam)
+            }
+        };
+        if let Some(c) = &self.camera {
+            scene.camera = crate::camera::Camera::new(
+                Vec3::from_array(c.eye),
+                Vec3::from_array(c.look_at),
+                Vec3::from_array(c.up),
+                c.fov_y_deg,
+                resolution[0],
+                resolution[1],
+            )
+            .map_err(|e| anyhow!("{}: [scene.camera]: {e}", self.at))?;
+        }
+        for m in &self.meshes {
+            let obj = load_obj(&m.obj).map_err(|e| anyhow!("{}: {e}", self.at))?;
+            scene.warnings.extend(obj.warnings);
+            let mut mesh = obj.mesh;
+            if mesh.positions.is_empty() {
+                bail!("{}: model {} has no vertices", self.at, m.obj.display());
+            }
+            let place = if let Some(h) = m.fit_height {
+                // Move the model's bounding box to sit on the origin, then scale it to
+                // the requested height and put it at `at`.
+                let (lo, hi) = mesh
+                    .positions
+                    .iter()
+                    .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(a, b), p| (a.min(*p), b.max(*p)));
+                let height = hi.y - lo.y;
+                if !(height > 0.0 && h > 0.0 && h.is_finite()) {
+                    bail!("{}: model {}: cannot fit a flat model or to a non-positive height", self.at, m.obj.display());
+                }
+                let offset = Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
+                for p in &mut mesh.positions {
+                    *p -= offset;
+                }
+                Placement { scale: Vec3::splat(h / height), rotate_y_deg: m.rotate_y_deg, translate: Vec3::from_array(m.at) }
+            } else {
+                Placement { scale: Vec3::splat(m.scale.unwrap_or(1.0)), rotate_y_deg: m.rotate_y_deg, translate: Vec3::from_array(m.at) }
+            };
+            let over = m.albedo.map(|a| crate::material::Material::diffuse("model", Color::from_array(a)));
+            scene.add_mesh(&mesh, &place, over.as_ref()).map_err(|e| anyhow!("{}: {}: {e}", self.at, m.obj.display()))?;
+        }
+        for l in &self.lights {
+            scene.lights.push(match l {
+                LightSpec::Point { position, intensity } => {
+                    LightDesc::Point { position: Vec3::from_array(*position), intensity: Color::from_array(*intensity) }
+                }
+                LightSpec::Directional { direction, irradiance } => {
+                    let d = Vec3::from_array(*direction);
+                    if d.length_squared() == 0.0 || !d.is_finite() {
+                        bail!("{}: [[scene.light]] direction must be a non-zero vector", self.at);
+                    }
+                    LightDesc::Directional { direction: d.normalize(), irradiance: Color::from_array(*irradiance) }
+                }
+            });
+        }
+        scene.validate().map_err(|e| anyhow!("{}: scene: {e}", self.at))?;
+        Ok(scene)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Manifest> {
+        Manifest::parse(text, Path::new("m.toml"), Path::new("."))
+    }
+
+    const HEAD: &str = "scene = \"cornell\"\nresolution = [8, 8]\n[reference]\nspp = 4\n";
+
+    #[test]
+    fn sweep_expands_in_order_with_exclusions_and_repeats() {
+        let m = parse(&format!(
+            "{HEAD}[base]\nspp = 2\n[sweep]\nsampler = [\"random\", \"halton\"]\nmax_depth = [1, 2, 3]\nrepeats = 2\nexclude = [{{ sampler = \"random\", max_depth = 2 }}]\n"
+        ))
+        .unwrap();
+        assert_eq!(m.axes, ["sampler", "max_depth"]);
+        assert_eq!(m.numeric_axes, ["max_depth"]);
+        assert_eq!(m.repeats, 2);
+        assert_eq!(m.cells.len(), 10);
+        let labels: Vec<&str> = m.cells.iter().step_by(2).map(|c| c.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "sampler=random max_depth=1",
+                "sampler=random max_depth=3",
+                "sampler=halton max_depth=1",
+                "sampler=halton max_depth=2",
+                "sampler=halton max_depth=3"
+            ]
+        );
+        assert_eq!(m.cells[0].group, "sampler=random");
+        assert_eq!((m.cells[0].config.seed, m.cells[1].config.seed), (0, 1));
+        assert_eq!(m.cells[1].stem, "sampler-random_max_depth-1_r1");
+        assert_eq!(m.cells[3].config.max_depth, Some(3));
+        assert_eq!(m.cells[3].config.spp, 2);
+        assert_eq!(m.cells[3].config.resolution, Some([8, 8]));
+        match &m.reference {
+            ReferenceSpec::Render(c) => assert_eq!((c.spp, c.seed), (4, REFERENCE_SEED)),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn several_scenes_are_the_outer_axis() {
+        let m = parse("scene = [\"cornell\", \"furnace\"]\nresolution = [8, 8]\n[reference]\nspp = 4\n[sweep]\nspp = [1, 2]\n").unwrap();
+        assert_eq!(m.axes, ["scene", "spp"]);
+        assert_eq!(m.cells.len(), 4);
+        assert_eq!(m.cells[2].label, "scene=furnace spp=1");
+        assert_eq!(m.cells[2].group, "scene=furnace");
+        assert_eq!(m.cells[2].stem, "scene-furnace_spp-1_r0");
+        assert_eq!((m.cells[2].scene, m.cells[2].config_index), (1, 2));
+        assert!(
+            format!("{:#}", parse("scene = [\"cornell\", \"cornell\"]\nresolution = [8, 8]\n[reference]\nspp = 4\n").unwrap_err())
+                .contains("twice")
+        );
+    }
+
+    #[test]
+    fn named_configurations() {
+        let m =
+            parse(&format!("repeats = 3\n{HEAD}[[configs]]\nname = \"a\"\nspp = 1\n[[configs]]\nname = \"b b\"\nsampler = \"random\"\n"))
+                .unwrap();
+        assert_eq!(m.cells.len(), 6);
+        assert_eq!(m.cells[3].label, "b b");
+        assert_eq!(m.cells[3].stem, "b_b_r0");
+        assert_eq!(m.cells[0].config.spp, 1);
+        assert_eq!(m.cells[3].config.sampler, "random");
+    }
+
+    fn err(text: &str) -> String {
+        format!("{:#}", parse(text).unwrap_err())
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let e = err(&format!("{HEAD}[sweep]\nspp = [1, 2]\nbogus = [1]\n"));
+        assert!(e.starts_with("m.toml:7:") && e.contains("bogus"), "{e}");
+        let e = err(&format!("{HEAD}[sweep]\nspp = []\n"));
+        assert!(e.starts_with("m.toml:6:") && e.contains("empty axis"), "{e}");
+        let e = err(&format!("{HEAD}[sweep]\nsampler = [\"sobol\"]\n"));
+        assert!(e.starts_with("m.toml:6:") && e.contains("sobol") && e.contains("known"), "{e}");
+        let e = err(&format!("{HEAD}[base]\nspp = 4\n[sweep]\nrr = [\"fixed\", \"off\"]\n"));
+        assert!(e.starts_with("m.toml:8:") && e.contains("max_depth"), "{e}");
+        let e = err(&format!("{HEAD}[sweep]\nspp = [0, 1]\n"));
+        assert!(e.starts_with("m.toml:6:") && e.contains("spp"), "{e}");
+        let e = err(&format!("{HEAD}[sweep]\nspp = [-1]\n"));
+        assert!(e.starts_with("m.toml:6:"), "{e}");
+        let e = err(&format!("{HEAD}[sweep]\nspp = [1]\nexclude = [{{ sampler = \"random\" }}]\n"));
+        assert!(e.contains("not a sweep axis"), "{e}");
+        let e = err(&format!("{HEAD}[sweep]\nspp = [1]\nexclude = [{{ spp = 1 }}]\n"));
+        assert!(e.contains("nothing to run"), "{e}");
+        let e = err("scene = \"cornel\"\nresolution = [8, 8]\n[reference]\nspp = 4\n");
+        assert!(e.starts_with("m.toml:1:") && e.contains("known: cornell"), "{e}");
+        let e = err(&format!("{HEAD}[base]\nresolution = [4, 4]\n"));
+        assert!(e.starts_with("m.toml:6:") && e.contains("top level"), "{e}");
+        let e = err(&format!("{HEAD}colour = 1\n"));
+        assert!(e.starts_with("m.toml:") && e.contains("colour"), "{e}");
+        let e = err(&format!("{HEAD}[sweep]\nspp = 4\n"));
+        assert!(e.contains("list of values"), "{e}");
+    }
+}

@@ -1,0 +1,251 @@
+//! Plots of an experiment (PNG + SVG under `plots/`): error vs time, error vs each
+//! numeric axis with fitted convergence slopes, bias/variance bars and phase times.
+
+use super::cell::BiasVariance;
+use super::manifest::Manifest;
+use super::output::ConfigStats;
+use crate::plot::{LinePlot, Series, StackedBars, bar_plot, line_plot, log_log_slope};
+use anyhow::Result;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Axis label (with unit) for a swept key.
+fn axis_label(key: &str) -> String {
+    match key {
+        "spp" => "samples per pixel".into(),
+        "photons" => "photons stored in the global maps".into(),
+        "caustic_photons" => "photons stored in the caustic map".into(),
+        "emit_photons" => "photon paths emitted".into(),
+        "gather_samples" => "final-gather rays per point".into(),
+        "direct_samples" => "shadow rays per shading point".into(),
+        "k" | "caustic_k" => format!("{key} (photons per estimate)"),
+        "max_radius" | "caustic_max_radius" => format!("{key} (scene units)"),
+        "max_depth" => "maximum depth (bounces)".into(),
+        _ => key.to_string(),
+    }
+}
+
+fn short(c: &ConfigStats) -> String {
+    // Bars have little room: the values alone.
+    let v: Vec<String> = c.values.values().map(|v| v.as_str().map_or_else(|| v.to_string(), str::to_string)).collect();
+    if v.is_empty() { c.label.clone() } else { v.join(" ") }
+}
+
+/// Whether a log axis shows labels: plotters puts log ticks only where the data
+/// span a decade, so narrower ranges get a linear axis.
+fn log_ok(vals: impl Iterator<Item = f64>) -> bool {
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for v in vals {
+        if v <= 0.0 || !v.is_finite() {
+            return false;
+        }
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    lo.is_finite() && hi / lo >= 10.0
+}
+
+/// The integrator's timed phases of a configuration (`extra` keys ending in `_s`)
+/// that do not overlap: taken longest first while they fit in the pre-pass time.
+/// A sub-phase is never longer than the phase containing it, so parents are taken
+/// first and their children no longer fit.
+fn disjoint_phases(c: &ConfigStats) -> Vec<&String> {
+    let mut keys: Vec<(&String, f64)> = c.extra.iter().filter(|(k, _)| k.ends_with("_s")).map(|(k, v)| (k, *v)).collect();
+    keys.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(b.0)));
+    let budget = c.preprocess_s * 1.001 + 1e-6;
+    let mut sum = 0.0;
+    let mut out = Vec::new();
+    for (k, v) in keys {
+        if sum + v <= budget {
+            sum += v;
+            out.push(k);
+        }
+    }
+    out
+}
+
+/// Draws every plot the data supports; returns (title, relative PNG path) pairs.
+pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec<(String, String)>> {
+    let pdir = dir.join("plots");
+    let mut out = Vec::new();
+
+    // Error vs time, one line per strategy (points along the numeric axes).
+    let mut groups: BTreeMap<String, Vec<(f64, f64)>> = BTreeMap::new();
+    let mut order: Vec<String> = Vec::new();
+    for c in stats {
+        if !groups.contains_key(&c.group) {
+            order.push(c.group.clone());
+        }
+        groups.entry(c.group.clone()).or_default().push((c.time_s, c.relmse));
+    }
+    let series: Vec<Series> = order
+        .iter()
+        .map(|g| {
+            let mut p = groups[g].clone();
+            p.sort_by(|a, b| a.0.total_cmp(&b.0));
+            Series { name: g.clone(), points: p }
+        })
+        .collect();
+    let title = "Relative MSE vs render time".to_string();
+    let (log_x, log_y) = (
+        log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.0))),
+        log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.1))),
+    );
+    line_plot(
+        &pdir.join("error_vs_time"),
+        &LinePlot {
+            title: format!("{}: {title}", m.name),
+            x_label: format!("time: accel build + pre-pass + render (s{})", if log_x { ", log" } else { "" }),
+            y_label: format!("relative MSE vs reference (1{})", if log_y { ", log" } else { "" }),
+            log_x,
+            log_y,
+            series,
+        },
+    )?;
+    out.push((title, "plots/error_vs_time.png".into()));
+
+    // Error vs each numeric axis; one line per combination of the other axes, with
+    // the least-squares log–log slope in the legend.
+    for axis in &m.numeric_axes {
+        let mut lines: BTreeMap<String, Vec<(f64, f64)>> = BTreeMap::new();
+        let mut order: Vec<String> = Vec::new();
+        for c in stats {
+            let Some(x) = c.values.get(axis).and_then(|v| v.as_f64()) else { continue };
+            let others: Vec<String> = c
+                .values
+                .iter()
+                .filter(|(k, _)| *k != axis)
+                .map(|(k, v)| format!("{k}={}", v.as_str().map_or_else(|| v.to_string(), str::to_string)))
+                .collect();
+            let key = if others.is_empty() { "all".to_string() } else { others.join(" ") };
+            if !lines.contains_key(&key) {
+                order.push(key.clone());
+            }
+            lines.entry(key).or_default().push((x, c.relmse));
+        }
+        let positive = lines.values().flatten().all(|p| p.0 > 0.0);
+        let series: Vec<Series> = order
+            .iter()
+            .map(|k| {
+                let mut p = lines[k].clone();
+                p.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let name = match log_log_slope(&p).filter(|_| positive) {
+                    Some(s) => format!("{k} (slope {s:.2})"),
+                    None => k.clone(),
+                };
+                Series { name, points: p }
+            })
+            .collect();
+        let title = format!("Relative MSE vs {axis}");
+        let log_x = positive && log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+        let log_y = log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+        let stem = format!("error_vs_{axis}");
+        line_plot(
+            &pdir.join(&stem),
+            &LinePlot {
+                title: format!("{}: {title} (log–log slope in legend)", m.name),
+                x_label: format!("{}{}", axis_label(axis), if log_x { " (log)" } else { "" }),
+                y_label: format!("relative MSE vs reference (1{})", if log_y { ", log" } else { "" }),
+                log_x,
+                log_y,
+                series,
+            },
+        )?;
+        out.push((title, format!("plots/{stem}.png")));
+    }
+
+    // Bias² / variance bars.
+    let bv: Vec<(&ConfigStats, BiasVariance)> = stats.iter().filter_map(|c| c.split.map(|s| (c, s))).collect();
+    if !bv.is_empty() {
+        let title = "Relative MSE split into bias² and variance".to_string();
+        bar_plot(
+            &pdir.join("bias_variance"),
+            &StackedBars {
+                title: format!("{}: {title} ({} repeats)", m.name, m.repeats),
+                y_label: "relative MSE (1)".into(),
+                categories: bv.iter().map(|(c, _)| short(c)).collect(),
+                layers: vec![
+                    ("bias² (relative)".into(), bv.iter().map(|(_, s)| s.rel_bias2.max(0.0)).collect()),
+                    ("variance (relative)".into(), bv.iter().map(|(_, s)| s.rel_variance).collect()),
+                ],
+            },
+        )?;
+        out.push((title, "plots/bias_variance.png".into()));
+    }
+
+    // Phase times: accel build, the integrator's timed phases, the rest of the
+    // pre-pass, render. Integrators may also report sub-phases (a kd-tree build
+    // inside the photon pass), so per configuration only a disjoint set is stacked.
+    let chosen: Vec<Vec<&String>> = stats.iter().map(disjoint_phases).collect();
+    let mut phase_keys: Vec<&String> = chosen.iter().flatten().copied().collect();
+    phase_keys.sort();
+    phase_keys.dedup();
+    let mut layers: Vec<(String, Vec<f64>)> = vec![("accel build".into(), stats.iter().map(|c| c.accel_build_s).collect())];
+    for k in &phase_keys {
+        let vals =
+            stats.iter().zip(&chosen).map(|(c, ch)| if ch.contains(k) { c.extra.get(*k).copied().unwrap_or(0.0) } else { 0.0 }).collect();
+        layers.push((k.trim_end_matches("_s").replace('_', " "), vals));
+    }
+    let rest: Vec<f64> = stats
+        .iter()
+        .zip(&chosen)
+        .map(|(c, ch)| (c.preprocess_s - ch.iter().map(|k| c.extra.get(*k).copied().unwrap_or(0.0)).sum::<f64>()).max(0.0))
+        .collect();
+    if rest.iter().any(|r| *r > 1e-3) || phase_keys.is_empty() {
+        layers.push((if phase_keys.is_empty() { "pre-pass" } else { "other pre-pass" }.into(), rest));
+    }
+    layers.push(("render".into(), stats.iter().map(|c| c.render_s).collect()));
+    let title = "Time of each phase".to_string();
+    bar_plot(
+        &pdir.join("phase_times"),
+        &StackedBars {
+            title: format!("{}: {title}", m.name),
+            y_label: "wall time (s)".into(),
+            categories: stats.iter().map(short).collect(),
+            layers,
+        },
+    )?;
+    out.push((title, "plots/phase_times.png".into()));
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nested_phase_times_are_not_stacked_twice() {
+        let extra: BTreeMap<String, f64> = [
+            ("photon_pass_s", 0.15),
+            ("photon_trace_s", 0.12),
+            ("kdtree_build_s", 0.04),
+            ("precompute_s", 0.4),
+            ("prefill_s", 0.19),
+            ("photons_emitted", 9.0),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect();
+        let c = ConfigStats {
+            config_index: 0,
+            label: "x".into(),
+            group: "x".into(),
+            values: BTreeMap::new(),
+            first_stem: "x_r0".into(),
+            repeats: 1,
+            rmse: 0.0,
+            relmse: 0.0,
+            mae: 0.0,
+            time_s: 1.0,
+            accel_build_s: 0.0,
+            preprocess_s: 0.7401,
+            render_s: 0.25,
+            rays: 0.0,
+            extra,
+            split: None,
+        };
+        let mut got: Vec<&str> = disjoint_phases(&c).into_iter().map(String::as_str).collect();
+        got.sort();
+        assert_eq!(got, ["photon_pass_s", "precompute_s", "prefill_s"]);
+    }
+}
