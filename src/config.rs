@@ -14,7 +14,7 @@ pub struct RenderConfig {
     pub spp: u32,
     /// Sampler name (`random`, `halton`, `hammersley`).
     pub sampler: String,
-    /// Accelerator name (`none`, `bvh`).
+    /// Accelerator name (`none`, `bvh`, `bvh4`, `bvh8`).
     pub accel: String,
     /// Russian-roulette policy `NAME[:PARAM]` (`off`, `fixed:q`, `albedo`, `throughput:min_depth`).
     pub rr: String,
@@ -95,7 +95,7 @@ impl Default for RenderConfig {
             integrator: "path".into(),
             spp: 16,
             sampler: "halton".into(),
-            accel: "bvh".into(),
+            accel: "bvh8".into(),
             rr: "throughput".into(),
             max_depth: None,
             seed: 0,
@@ -163,7 +163,7 @@ mod tests {
     fn unknown_keys_rejected() {
         let ok: RenderConfig = toml::from_str("spp = 4\nsampler = \"random\"").unwrap();
         assert_eq!(ok.spp, 4);
-        assert_eq!(ok.accel, "bvh");
+        assert_eq!(ok.accel, "bvh8");
         let err = toml::from_str::<RenderConfig>("spp = 4\nbogus = 1").unwrap_err();
         assert!(err.to_string().contains("bogus"), "{err}");
     }

@@ -47,6 +47,7 @@ fn run_into(manifest: &Path, out: &Path, shard: Option<&str>, force: bool) -> Ru
         force,
         shard: shard.map(|s| s.parse::<Shard>().unwrap()),
         reference_only: false,
+        list: false,
         quiet: true,
     })
     .unwrap()
@@ -200,8 +201,12 @@ fn shards_merged_equal_one_run_and_reference_cache() {
     }
     let e = format!("{:#}", photonlab::experiment::finalize(&sharded, true).unwrap_err());
     assert!(e.contains("3 of 8 cells are not finished"), "{e}");
-    ran += run_into(&p, &sharded, Some("1/3"), false).ran;
+    // The last shard on "another machine": its own directory, cells copied over.
+    let elsewhere = d.join("elsewhere");
+    ran += run_into(&p, &elsewhere, Some("1/3"), false).ran;
     assert_eq!(ran, 8);
+    assert_eq!(photonlab::experiment::import_cells(&sharded, &elsewhere).unwrap(), 3);
+    assert_eq!(photonlab::experiment::import_cells(&sharded, &elsewhere).unwrap(), 0);
     photonlab::experiment::finalize(&sharded, true).unwrap();
     let (h1, r1) = read_csv(&one);
     let (h2, r2) = read_csv(&sharded);
@@ -281,9 +286,16 @@ fn shipped_manifests_validate_and_missing_models_are_clear_errors() {
     for f in ["cornell-empty.toml", "cornell-empty.obj", "cornell-empty.mtl"] {
         std::fs::copy(root.join("external/cornell-empty").join(f), d.join("cornell-empty").join(f)).unwrap();
     }
-    let e =
-        run(&RunArgs { manifest: p.clone(), out: Some(d.join("dragon")), force: false, shard: None, reference_only: false, quiet: true })
-            .unwrap_err();
+    let e = run(&RunArgs {
+        manifest: p.clone(),
+        out: Some(d.join("dragon")),
+        force: false,
+        shard: None,
+        reference_only: false,
+        list: false,
+        quiet: true,
+    })
+    .unwrap_err();
     let e = format!("{e:#}");
     assert!(e.starts_with(&p.display().to_string()) && e.contains("not found") && e.contains("download"), "{e}");
     assert!(!d.join("dragon").exists());
@@ -296,9 +308,16 @@ fn sigkill_mid_run_then_resume_gives_the_uninterrupted_results() {
     let text = TINY.replace("[12, 12]", "[40, 40]").replace("spp = [1, 2]", "spp = [8, 16]");
     let p = write(&d, "k.toml", &text);
     // The reference first, alone (as a cluster would before starting the shards).
-    let r =
-        run(&RunArgs { manifest: p.clone(), out: Some(d.join("killed")), force: false, shard: None, reference_only: true, quiet: true })
-            .unwrap();
+    let r = run(&RunArgs {
+        manifest: p.clone(),
+        out: Some(d.join("killed")),
+        force: false,
+        shard: None,
+        reference_only: true,
+        list: false,
+        quiet: true,
+    })
+    .unwrap();
     assert!(r.reference_rendered && r.ran == 0 && !d.join("killed/cells.csv").exists());
     // A real process killed with SIGKILL as soon as its first cell is recorded.
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_photonlab"))
@@ -330,5 +349,76 @@ fn sigkill_mid_run_then_resume_gives_the_uninterrupted_results() {
     for (cell, row) in &r1 {
         assert_eq!(stable(&h1, row), stable(&h2, &r2[cell]), "{cell}");
     }
+    std::fs::remove_dir_all(d).ok();
+}
+
+#[test]
+fn several_scenes_get_their_own_references() {
+    let d = scratch("scenes");
+    let text = TINY.replace("scene = \"cornell\"", "scene = [\"cornell\", \"furnace\"]").replace("repeats = 2", "repeats = 1");
+    let p = write(&d, "s.toml", &text);
+    let out = d.join("s");
+    let r = run_into(&p, &out, None, false);
+    assert_eq!(r.ran, 8);
+    let (h, rows) = read_csv(&out);
+    assert!(rows.contains_key("scene-furnace_spp-2_sampler-halton_r0"));
+    for f in ["reference-cornell.exr", "reference-furnace.png"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // Errors are measured against each scene's own reference: the furnace's image is
+    // uniform (L_e / (1 − a)), so even 1 spp is close to it, unlike the Cornell box.
+    let rel = |c: &str| rows[c][h.iter().position(|x| x == "relmse").unwrap()].parse::<f64>().unwrap();
+    assert!(rel("scene-furnace_spp-1_sampler-random_r0") < 0.5 * rel("scene-cornell_spp-1_sampler-random_r0"));
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(summary.contains("![reference furnace](reference-furnace.png)"), "{summary}");
+    std::fs::remove_dir_all(d).ok();
+}
+
+#[test]
+fn scene_table_places_models_and_adds_lights() {
+    let d = scratch("model");
+    // A tetrahedron in arbitrary units, off-centre: fit_height must normalise it.
+    write(&d, "tet.obj", "v 10 5 10\nv 12 5 10\nv 10 5 12\nv 11 9 11\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n");
+    let text = r#"
+resolution = [12, 12]
+[scene]
+builtin = "cornell"
+[[scene.mesh]]
+obj = "tet.obj"
+fit_height = 150.0
+at = [278.0, 0.0, 280.0]
+albedo = [0.5, 0.5, 0.5]
+[[scene.light]]
+type = "point"
+position = [278.0, 400.0, 280.0]
+intensity = [5000.0, 5000.0, 5000.0]
+[reference]
+spp = 4
+[base]
+spp = 1
+"#;
+    let p = write(&d, "m.toml", text);
+    let m = Manifest::load(&p).unwrap();
+    let scene = m.scenes[0].load(m.resolution).unwrap();
+    let plain = photonlab::scene::builtin::builtin("cornell").unwrap();
+    assert_eq!(scene.triangles.len(), plain.triangles.len() + 4);
+    assert_eq!(scene.lights.len(), plain.lights.len() + 1);
+    let added = &scene.triangles[plain.triangles.len()..];
+    let ys = added.iter().flatten().map(|v| v.y);
+    let (lo, hi) = ys.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), y| (a.min(y), b.max(y)));
+    assert!(lo.abs() < 1e-3 && (hi - 150.0).abs() < 1e-2, "{lo} {hi}");
+    let cx = added.iter().flatten().map(|v| v.x).fold(f32::INFINITY, f32::min);
+    // Scale 150 / 4 = 37.5, the model 2 wide: centred on x = 278.
+    assert!((cx - (278.0 - 37.5)).abs() < 1e-2, "{cx}");
+    // It renders, and its reference is not the plain box's.
+    let r = run_into(&p, &d.join("m"), None, false);
+    assert!(r.reference_rendered && r.finalized);
+    let plain_text = "scene = \"cornell\"\nresolution = [12, 12]\n[reference]\nspp = 4\n[base]\nspp = 1\n";
+    let plain_manifest = write(&d, "plain.toml", plain_text);
+    assert!(run_into(&plain_manifest, &d.join("plain"), None, false).reference_rendered);
+    // Without the model, the error names the manifest and the missing file.
+    std::fs::remove_file(d.join("tet.obj")).unwrap();
+    let e = format!("{:#}", Manifest::load(&p).unwrap().scenes[0].load([12, 12]).unwrap_err());
+    assert!(e.contains("m.toml:3") && e.contains("tet.obj") && e.contains("not found"), "{e}");
     std::fs::remove_dir_all(d).ok();
 }

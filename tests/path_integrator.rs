@@ -85,3 +85,28 @@ fn cornell_colour_bleeding() {
     let brightest = (0..8).flat_map(|y| (0..32).map(move |x| (x, y))).map(|(x, y)| f.get(x, y).x).fold(0.0f32, f32::max);
     assert!(brightest > 5.0, "light should be visible near the top: {brightest}");
 }
+
+/// A closed perfect mirror (reflectance 1) never lowers a path's throughput, so
+/// throughput- and albedo-based roulette never end it. With `max_depth` unset the
+/// render must still finish: the safety cap ends each path after
+/// `SAFETY_MAX_DEPTH` bounces (one closest-hit ray per bounce plus the camera ray).
+#[test]
+fn trapped_paths_end_at_the_safety_cap() {
+    use photonlab::config::SAFETY_MAX_DEPTH;
+    use photonlab::light::LightDesc;
+    use photonlab::material::{Bsdf, Mirror};
+    for rr in ["throughput", "albedo"] {
+        let mut s = furnace(0.5, 0.0, 8);
+        for m in &mut s.materials {
+            m.bsdf = Bsdf::Mirror(Mirror { reflectance: glam::Vec3::ONE });
+        }
+        s.lights.push(LightDesc::Point { position: glam::Vec3::new(0.0, 0.2, 0.1), intensity: glam::Vec3::ONE });
+        let cfg = RenderConfig { spp: 1, rr: rr.into(), seed: 1, resolution: Some([4, 4]), ..Default::default() };
+        let out = render_scene(s, &cfg, true).unwrap();
+        let closest = out.rays().rays;
+        let paths = 16u64;
+        assert!(closest >= paths * SAFETY_MAX_DEPTH as u64, "rr {rr}: {closest} closest-hit rays: paths ended early");
+        assert!(closest <= paths * (SAFETY_MAX_DEPTH as u64 + 1), "rr {rr}: {closest} closest-hit rays: cap not applied");
+        assert!(out.film.mean().is_finite());
+    }
+}

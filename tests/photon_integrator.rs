@@ -141,7 +141,7 @@ fn glass_sphere_casts_a_caustic() {
 fn every_strategy_combination_runs() {
     for gather in ["direct", "final_gather", "precomputed", "irradiance_cache"] {
         for sampler in ["random", "halton", "hammersley"] {
-            for accel in ["none", "bvh"] {
+            for accel in ["none", "bvh", "bvh8"] {
                 // Brute force on the 9k-triangle spheres would dominate the suite's time.
                 let scene = if accel == "none" { cornell() } else { cornell_glass() };
                 for rr in ["off", "fixed:0.7", "albedo", "throughput"] {

@@ -11,9 +11,10 @@ use super::{Accel, PreTriangle, TraversalStats};
 use crate::geometry::{Aabb, Hit, Ray, intersect_triangle};
 use glam::Vec3;
 
-const BINS: usize = 16;
+/// Most SAH bins any build uses (array size).
+const MAX_BINS: usize = 32;
 /// The binary tree's leaf size and SAH node-visit cost (relative to a triangle test).
-const BINARY_PARAMS: BuildParams = BuildParams { max_leaf: 8, traversal_cost: 1.0, block: 1 };
+const BINARY_PARAMS: BuildParams = BuildParams { max_leaf: 8, traversal_cost: 1.0, block: 1, bins: 16, presplit: 0.0 };
 /// Build depth beyond which nodes are split by count (keeps the depth, and so the
 /// traversal stack, bounded: 64 + log2(2^32) < STACK).
 const MAX_SAH_DEPTH: usize = 64;
@@ -56,6 +57,11 @@ pub(crate) struct BuildParams {
     /// Triangles tested together (a leaf of n costs ⌈n / block⌉ tests), so that
     /// leaves of a SIMD-tested tree fill their blocks.
     pub block: usize,
+    /// SAH bins per axis (at most 32).
+    pub bins: usize,
+    /// Extra references allowed for pre-splitting large triangles, as a fraction of
+    /// the triangle count (0 = none); see [`presplit`].
+    pub presplit: f32,
 }
 
 impl BuildParams {
@@ -68,19 +74,109 @@ impl BuildParams {
 /// Builds the binary SAH tree over `tris`; returns it with the triangle order its
 /// leaves index (None for an empty list).
 pub(crate) fn build_tree(tris: &[[Vec3; 3]], params: BuildParams) -> Option<(BuildNode, Vec<u32>)> {
-    let mut prims: Vec<Prim> = tris
-        .iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let bounds = Aabb::of_triangle(t);
-            Prim { bounds, centroid: bounds.center(), index: i as u32 }
-        })
-        .collect();
+    let mut prims: Vec<Prim> = if params.presplit > 0.0 {
+        presplit(tris, (params.presplit * tris.len() as f32) as usize)
+    } else {
+        tris.iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let bounds = Aabb::of_triangle(t);
+                Prim { bounds, centroid: bounds.center(), index: i as u32 }
+            })
+            .collect()
+    };
     if prims.is_empty() {
         return None;
     }
     let root = build_rec(&mut prims, 0, 0, &params);
     Some((root, prims.iter().map(|p| p.index).collect()))
+}
+
+/// Pre-splitting ("early split clipping", Ernst & Greiner 2007): large triangles,
+/// whose boxes are mostly empty space (long walls and floors), get several
+/// references with smaller boxes, which is most of what spatial splits (SBVH) buy.
+/// The largest reference box is split at the middle of its longest axis, each half
+/// bounded by the triangle part on that side, until `budget` extra references are
+/// used or no box is larger than 8× the mean. Each part box is widened by a few ulps
+/// of the triangle's box (and kept inside it), so float rounding at the cut never
+/// uncovers a point of the triangle. The order of splits is deterministic.
+fn presplit(tris: &[[Vec3; 3]], budget: usize) -> Vec<Prim> {
+    use std::cmp::Ordering;
+    use std::collections::BinaryHeap;
+    struct Item(f32, u32, Aabb);
+    impl PartialEq for Item {
+        fn eq(&self, o: &Self) -> bool {
+            self.cmp(o) == Ordering::Equal
+        }
+    }
+    impl Eq for Item {}
+    impl PartialOrd for Item {
+        fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+            Some(self.cmp(o))
+        }
+    }
+    impl Ord for Item {
+        fn cmp(&self, o: &Self) -> Ordering {
+            self.0.total_cmp(&o.0).then(o.1.cmp(&self.1))
+        }
+    }
+    let boxes: Vec<Aabb> = tris.iter().map(Aabb::of_triangle).collect();
+    let mean = boxes.iter().map(|b| b.area() as f64).sum::<f64>() / boxes.len().max(1) as f64;
+    let threshold = (8.0 * mean) as f32;
+    let mut heap: BinaryHeap<Item> = boxes.iter().enumerate().map(|(i, b)| Item(b.area(), i as u32, *b)).collect();
+    let mut done = Vec::with_capacity(tris.len() + budget);
+    let mut extra = 0;
+    while let Some(Item(area, i, b)) = heap.pop() {
+        if extra >= budget || area <= threshold || area == 0.0 {
+            done.push((i, b));
+            done.extend(heap.drain().map(|Item(_, i, b)| (i, b)));
+            break;
+        }
+        let axis = b.diagonal().max_position();
+        let c = 0.5 * (b.min[axis] + b.max[axis]);
+        let t = &tris[i as usize];
+        let whole = &boxes[i as usize];
+        let pad = whole.diagonal() * (4.0 * f32::EPSILON) + Vec3::splat(f32::MIN_POSITIVE);
+        let mut halves = [Aabb::EMPTY; 2];
+        for k in 0..3 {
+            let (p, q) = (t[k], t[(k + 1) % 3]);
+            halves[(p[axis] > c) as usize].grow(p);
+            if (p[axis] <= c) != (q[axis] <= c) {
+                // The edge crosses the plane: its crossing point bounds both sides.
+                let s = (c - p[axis]) / (q[axis] - p[axis]);
+                let mut x = p + (q - p) * s;
+                x[axis] = c;
+                halves[0].grow(x);
+                halves[1].grow(x);
+            }
+        }
+        let mut parts = 0;
+        let mut cut = [Aabb::EMPTY; 2];
+        for (h, side) in halves.iter().zip(&mut cut) {
+            if h.is_empty() {
+                continue;
+            }
+            let mut hb = Aabb { min: (h.min - pad).max(b.min), max: (h.max + pad).min(b.max) };
+            // Stay on this side of the cut (with the padding) and inside the parent box.
+            hb.min = hb.min.max(whole.min);
+            hb.max = hb.max.min(whole.max);
+            *side = hb;
+            parts += 1;
+        }
+        if parts < 2 {
+            done.push((i, b));
+            continue;
+        }
+        extra += 1;
+        for hb in cut {
+            heap.push(Item(hb.area(), i, hb));
+        }
+    }
+    // Heap order depends only on (area, index), so this order is deterministic.
+    done.sort_by(|a, b| {
+        a.0.cmp(&b.0).then(a.1.min.x.total_cmp(&b.1.min.x)).then(a.1.min.y.total_cmp(&b.1.min.y)).then(a.1.min.z.total_cmp(&b.1.min.z))
+    });
+    done.into_iter().map(|(i, b)| Prim { bounds: b, centroid: b.center(), index: i }).collect()
 }
 
 /// Binary BVH.
@@ -108,25 +204,26 @@ fn build_rec(prims: &mut [Prim], offset: usize, depth: usize, params: &BuildPara
         return BuildNode::Leaf { bounds, first: offset, count: n };
     }
     // Binned SAH over all three axes.
+    let bins = params.bins.clamp(2, MAX_BINS);
     let ext = cb.diagonal();
     let mut best: Option<(usize, usize, f32)> = None;
     for axis in 0..3 {
         if ext[axis] <= 0.0 {
             continue;
         }
-        let mut bin_bounds = [Aabb::EMPTY; BINS];
-        let mut bin_count = [0usize; BINS];
-        let k = BINS as f32 / ext[axis];
+        let mut bin_bounds = [Aabb::EMPTY; MAX_BINS];
+        let mut bin_count = [0usize; MAX_BINS];
+        let k = bins as f32 / ext[axis];
         for p in prims.iter() {
-            let b = (((p.centroid[axis] - cb.min[axis]) * k) as usize).min(BINS - 1);
+            let b = (((p.centroid[axis] - cb.min[axis]) * k) as usize).min(bins - 1);
             bin_count[b] += 1;
             bin_bounds[b] = bin_bounds[b].union(&p.bounds);
         }
-        let mut right_area = [0.0f32; BINS];
-        let mut right_count = [0usize; BINS];
+        let mut right_area = [0.0f32; MAX_BINS];
+        let mut right_count = [0usize; MAX_BINS];
         let mut acc = Aabb::EMPTY;
         let mut cnt = 0;
-        for i in (1..BINS).rev() {
+        for i in (1..bins).rev() {
             acc = acc.union(&bin_bounds[i]);
             cnt += bin_count[i];
             right_area[i] = acc.area();
@@ -134,7 +231,7 @@ fn build_rec(prims: &mut [Prim], offset: usize, depth: usize, params: &BuildPara
         }
         let mut acc = Aabb::EMPTY;
         let mut cnt = 0;
-        for i in 0..BINS - 1 {
+        for i in 0..bins - 1 {
             acc = acc.union(&bin_bounds[i]);
             cnt += bin_count[i];
             if cnt == 0 || right_count[i + 1] == 0 {
@@ -153,11 +250,11 @@ fn build_rec(prims: &mut [Prim], offset: usize, depth: usize, params: &BuildPara
         .filter(|&(_, _, cost)| n > params.max_leaf || params.traversal_cost + cost / parent_area < leaf_cost);
     let mid = match split {
         Some((axis, bin, _)) => {
-            let k = BINS as f32 / ext[axis];
+            let k = bins as f32 / ext[axis];
             let mut i = 0;
             let mut j = n;
             while i < j {
-                let b = (((prims[i].centroid[axis] - cb.min[axis]) * k) as usize).min(BINS - 1);
+                let b = (((prims[i].centroid[axis] - cb.min[axis]) * k) as usize).min(bins - 1);
                 if b <= bin {
                     i += 1;
                 } else {
@@ -219,7 +316,9 @@ impl Bvh {
         let t0 = (Vec3::from_array(node.min) - o) * inv_d;
         let t1 = (Vec3::from_array(node.max) - o) * inv_d;
         let tmin = t0.min(t1).max_element().max(0.0);
-        let tmax = t0.max(t1).min_element().min(t_max);
+        // Widened by 1 + 2γ₃ (Ize 2013): without it rounding can cull a flat box
+        // (an axis-aligned wall) that the ray does hit; seen on Sponza.
+        let tmax = t0.max(t1).min_element().min(t_max) * (1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5));
         // Written so a NaN (0·inf on a slab boundary) never produces a false hit skip:
         // NaN comparisons are false, and max/min above ignore NaN operands.
         if tmin <= tmax { tmin } else { f32::INFINITY }
@@ -374,6 +473,24 @@ mod tests {
             let c = uniform_sphere([unit(hash_words(&[k, 1])), unit(hash_words(&[k, 2]))]) * 0.8;
             tris.push([c, c + Vec3::new(0.3, 0.05, 0.0), c + Vec3::new(0.0, 0.3, 0.1)]);
         }
+        // An axis-aligned room of 8×8-quad walls: flat boxes, where an unwidened slab
+        // test loses hits to rounding.
+        for axis in 0..3 {
+            for side in [-1.8f32, 1.8] {
+                for (i, j) in (0..8).flat_map(|i| (0..8).map(move |j| (i, j))) {
+                    let p = |a: f32, b: f32| {
+                        let mut v = [0.0f32; 3];
+                        v[axis] = side;
+                        v[(axis + 1) % 3] = -2.0 + 0.5 * a;
+                        v[(axis + 2) % 3] = -2.0 + 0.5 * b;
+                        Vec3::from_array(v)
+                    };
+                    let (a, b) = (i as f32, j as f32);
+                    tris.push([p(a, b), p(a + 1.0, b), p(a + 1.0, b + 1.0)]);
+                    tris.push([p(a, b), p(a + 1.0, b + 1.0), p(a, b + 1.0)]);
+                }
+            }
+        }
         tris
     }
 
@@ -390,7 +507,16 @@ mod tests {
             let (mut hits, mut occluded) = (0, 0);
             for k in 0..n {
                 let o = uniform_sphere([unit(hash_words(&[k, 3])), unit(hash_words(&[k, 4]))]) * (0.2 + 1.5 * unit(hash_words(&[k, 5])));
-                let d = uniform_sphere([unit(hash_words(&[k, 6])), unit(hash_words(&[k, 7]))]);
+                let mut d = uniform_sphere([unit(hash_words(&[k, 6])), unit(hash_words(&[k, 7]))]);
+                if k % 4 == 0 {
+                    // Aim at a wall point on a grid line, where flat boxes meet.
+                    let mut v = [0.0f32; 3];
+                    let axis = (k / 4 % 3) as usize;
+                    v[axis] = if k % 8 == 0 { 1.8 } else { -1.8 };
+                    v[(axis + 1) % 3] = -2.0 + 0.5 * (hash_words(&[k, 8]) % 9) as f32;
+                    v[(axis + 2) % 3] = -2.0 + 4.0 * unit(hash_words(&[k, 9]));
+                    d = Vec3::from_array(v) - o;
+                }
                 let ray = Ray::new(o, d);
                 let a = lin.intersect(&ray, f32::INFINITY, &mut s1);
                 let b = acc.intersect(&ray, f32::INFINITY, &mut s2);
@@ -420,6 +546,49 @@ mod tests {
             assert!(hits > n / 2 && occluded > n as u32 / 10 && u64::from(occluded) < hits, "{name}: {hits} hits, {occluded} occluded");
             assert_eq!(s1.rays, s2.rays);
             assert!(s2.tri_tests * 10 < s1.tri_tests, "{name} should test far fewer triangles");
+        }
+    }
+
+    /// Pre-split parts cover their triangle (every sampled point lies in a part box),
+    /// stay inside its box, and shrink the total box area of long thin triangles.
+    #[test]
+    fn presplit_parts_cover_their_triangles() {
+        let mut tris = vec![
+            [Vec3::new(-10.0, 0.0, 0.0), Vec3::new(10.0, 0.1, 0.0), Vec3::new(-10.0, 0.2, 8.0)],
+            [Vec3::new(0.0, -5.0, 1.0), Vec3::new(0.3, 5.0, 1.0), Vec3::new(0.1, 5.0, 1.5)],
+        ];
+        // Many small triangles set the mean box area the threshold is relative to.
+        for k in 0..300 {
+            let c = Vec3::new(k as f32 * 0.01, 0.0, 0.0);
+            tris.push([c, c + Vec3::new(0.01, 0.0, 0.0), c + Vec3::new(0.0, 0.01, 0.0)]);
+        }
+        let prims = presplit(&tris, 200);
+        // The two large triangles are split until their parts are below 8× the mean.
+        assert!(prims.len() > tris.len() + 20 && prims.len() <= tris.len() + 200, "{}", prims.len());
+        for (i, t) in tris.iter().enumerate().take(3) {
+            let whole = Aabb::of_triangle(t);
+            let parts: Vec<&Prim> = prims.iter().filter(|p| p.index == i as u32).collect();
+            let largest = parts.iter().map(|p| p.bounds.area()).fold(0.0, f32::max);
+            if i < 2 {
+                assert!(parts.len() >= [10, 2][i] && largest < 0.6 * whole.area(), "triangle {i}: {} parts", parts.len());
+            } else {
+                assert_eq!(parts.len(), 1);
+            }
+            for p in &parts {
+                assert!(p.bounds.min.cmpge(whole.min).all() && p.bounds.max.cmple(whole.max).all());
+            }
+            for k in 0..20_000u64 {
+                let (mut a, mut b) = (unit(hash_words(&[k, 11])), unit(hash_words(&[k, 12])));
+                if a + b > 1.0 {
+                    (a, b) = (1.0 - a, 1.0 - b);
+                }
+                let x = t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b;
+                let x = x.clamp(whole.min, whole.max);
+                assert!(
+                    parts.iter().any(|p| p.bounds.min.cmple(x).all() && p.bounds.max.cmpge(x).all()),
+                    "triangle {i}: point {x} uncovered"
+                );
+            }
         }
     }
 

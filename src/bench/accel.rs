@@ -353,11 +353,28 @@ pub enum Query {
     Any,
 }
 
+/// CPU time consumed by the calling thread, seconds (None where unsupported).
+fn thread_cpu_secs() -> Option<f64> {
+    #[cfg(target_os = "linux")]
+    {
+        let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+        // SAFETY: clock_gettime writes only into `ts`.
+        let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+        if rc == 0 {
+            return Some(ts.tv_sec as f64 + 1e-9 * ts.tv_nsec as f64);
+        }
+    }
+    None
+}
+
 /// The outcome of tracing one ray set.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct TraceResult {
     /// Wall time from the first thread's start to the last join.
     pub secs: f64,
+    /// CPU time of the tracing threads, summed (wall time × threads where unknown).
+    /// On a shared machine this excludes time spent descheduled.
+    pub cpu_secs: f64,
     /// Rays that hit (closest) or were occluded (any).
     pub hits: u64,
     /// Traversal counters summed over the threads.
@@ -369,11 +386,12 @@ pub fn trace(accel: &dyn Accel, rays: &[BenchRay], query: Query, threads: usize)
     let threads = threads.max(1);
     let chunk = rays.len().div_ceil(threads).max(1);
     let t0 = Instant::now();
-    let parts: Vec<(u64, TraversalStats)> = std::thread::scope(|s| {
+    let parts: Vec<(u64, TraversalStats, Option<f64>)> = std::thread::scope(|s| {
         let handles: Vec<_> = rays
             .chunks(chunk)
             .map(|part| {
                 s.spawn(move || {
+                    let c0 = thread_cpu_secs();
                     let mut st = TraversalStats::default();
                     let mut hits = 0u64;
                     match query {
@@ -388,7 +406,8 @@ pub fn trace(accel: &dyn Accel, rays: &[BenchRay], query: Query, threads: usize)
                             }
                         }
                     }
-                    (hits, st)
+                    let cpu = c0.zip(thread_cpu_secs()).map(|(a, b)| b - a);
+                    (hits, st, cpu)
                 })
             })
             .collect();
@@ -396,9 +415,10 @@ pub fn trace(accel: &dyn Accel, rays: &[BenchRay], query: Query, threads: usize)
     });
     let secs = t0.elapsed().as_secs_f64();
     let mut out = TraceResult { secs, ..Default::default() };
-    for (h, st) in parts {
+    for (h, st, cpu) in parts {
         out.hits += h;
         out.stats.add(&st);
+        out.cpu_secs += cpu.unwrap_or(secs);
     }
     out
 }
@@ -422,6 +442,9 @@ pub struct BenchRow {
     pub build_s: f64,
     /// Millions of rays per second, total over the threads.
     pub mrays_per_s: f64,
+    /// Millions of rays per second of tracing-thread CPU time (per core; not
+    /// disturbed by time spent descheduled on a shared machine).
+    pub cpu_mrays_per_s: f64,
     /// Hit fraction (shadow: occluded fraction).
     pub hit_fraction: f64,
     /// Rays in the set.
@@ -495,6 +518,7 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
                 threads,
                 build_s: *build_s,
                 mrays_per_s: n / r.secs.max(1e-12) * 1e-6,
+                cpu_mrays_per_s: n / r.cpu_secs.max(1e-12) * 1e-6,
                 hit_fraction: r.hits as f64 / n,
                 n_rays: rays.len(),
                 node_tests_per_ray: r.stats.node_tests as f64 / n,
@@ -509,17 +533,18 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
 /// Prints rows as an aligned table.
 pub fn print_table(rows: &[BenchRow]) {
     println!(
-        "{:<24} {:<18} {:<8} {:>3} {:>9} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
-        "scene", "engine", "rays", "thr", "Mrays/s", "hit", "n_rays", "nodes/r", "tris/r", "build_s", "MB"
+        "{:<24} {:<18} {:<8} {:>3} {:>9} {:>9} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
+        "scene", "engine", "rays", "thr", "Mrays/s", "cpu Mr/s", "hit", "n_rays", "nodes/r", "tris/r", "build_s", "MB"
     );
     for r in rows {
         println!(
-            "{:<24} {:<18} {:<8} {:>3} {:>9.3} {:>8.4} {:>9} {:>8.1} {:>8.2} {:>8.3} {:>7.1}",
+            "{:<24} {:<18} {:<8} {:>3} {:>9.3} {:>9.3} {:>8.4} {:>9} {:>8.1} {:>8.2} {:>8.3} {:>7.1}",
             r.scene,
             r.engine,
             r.rays,
             r.threads,
             r.mrays_per_s,
+            r.cpu_mrays_per_s,
             r.hit_fraction,
             r.n_rays,
             r.node_tests_per_ray,

@@ -46,6 +46,10 @@ pub struct RunArgs {
     /// cluster render them once before the shards start.
     #[arg(long)]
     pub reference_only: bool,
+    /// Validate the manifest and list its cells (this shard's, with --shard) and
+    /// whether each is finished, without rendering anything.
+    #[arg(long)]
+    pub list: bool,
     /// No progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -56,6 +60,9 @@ pub struct RunArgs {
 pub struct MergeArgs {
     /// Experiment directory (results/NAME) holding the shards' cells.
     pub dir: PathBuf,
+    /// Other directories of the same experiment (shards run on machines without a
+    /// shared file system): their finished cells are copied into DIR first.
+    pub from: Vec<PathBuf>,
 }
 
 /// A deterministic subset of cells: shard `index` (1-based) of `count`.
@@ -268,6 +275,10 @@ pub fn references_dir(out: &Path) -> PathBuf {
 pub fn run(args: &RunArgs) -> Result<RunReport> {
     let m = Manifest::load(&args.manifest)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("results").join(&m.name));
+    if args.list {
+        list_cells(&m, &out, args.shard)?;
+        return Ok(RunReport { dir: out, ..Default::default() });
+    }
     // Every scene loads (and every model file exists) before anything renders.
     let scenes = m.scenes.iter().map(|s| s.load(m.resolution)).collect::<Result<Vec<Scene>>>()?;
     if !args.quiet {
@@ -350,18 +361,35 @@ fn log(pb: &indicatif::ProgressBar, line: String) {
     if pb.is_hidden() { eprintln!("{line}") } else { pb.println(line) }
 }
 
+/// `--list`: the cells, with shard and state, and the models the scenes need.
+fn list_cells(m: &Manifest, out: &Path, shard: Option<Shard>) -> Result<()> {
+    for s in &m.scenes {
+        s.check_files()?;
+    }
+    // The reference keys come from the last run's run.json (computing them would
+    // mean loading the scenes); without one, nothing counts as finished.
+    let info: Option<RunInfo> = std::fs::read_to_string(out.join("run.json")).ok().and_then(|t| serde_json::from_str(&t).ok());
+    let mut n = 0;
+    for c in m.cells.iter().filter(|c| shard.is_none_or(|s| s.takes(c.index))) {
+        let done = info.as_ref().and_then(|i| i.references.get(c.scene)).is_some_and(|r| finished(out, c, &r.key).is_some());
+        println!("{:>5}  {}  {}", c.index, if done { "finished" } else { "to run  " }, c.stem);
+        n += 1;
+    }
+    println!(
+        "{}: {n} of {} cells listed ({} configurations × {} repeats), output {}",
+        m.path.display(),
+        m.cells.len(),
+        m.configurations(),
+        m.repeats,
+        out.display()
+    );
+    Ok(())
+}
+
 /// Combines the cells under `dir` (from one run or several shards) into
 /// `cells.csv`, `cells.jsonl`, plots and `summary.md`.
 pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
-    let info_path = dir.join("run.json");
-    let info: RunInfo = serde_json::from_str(
-        &std::fs::read_to_string(&info_path)
-            .with_context(|| format!("{}: not an experiment directory (run `photonlab run` first)", info_path.display()))?,
-    )
-    .with_context(|| format!("{}: unreadable", info_path.display()))?;
-    let text = std::fs::read_to_string(dir.join("manifest.toml")).with_context(|| format!("{}: manifest copy missing", dir.display()))?;
-    let mdir = info.manifest.parent().map(Path::to_path_buf).unwrap_or_default();
-    let m = Manifest::parse(&text, &info.manifest, &mdir)?;
+    let (info, m) = read_info(dir)?;
     let mut rows = Vec::new();
     let mut missing = Vec::new();
     for c in &m.cells {
@@ -424,6 +452,9 @@ pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
 /// `photonlab run`.
 pub fn run_cmd(args: &RunArgs) -> Result<()> {
     let r = run(args)?;
+    if args.list {
+        return Ok(());
+    }
     println!(
         "{}: ran {} cell(s), kept {} finished{}",
         r.dir.display(),
@@ -436,7 +467,44 @@ pub fn run_cmd(args: &RunArgs) -> Result<()> {
 
 /// `photonlab merge`.
 pub fn merge_cmd(args: &MergeArgs) -> Result<()> {
+    for other in &args.from {
+        let n = import_cells(&args.dir, other)?;
+        eprintln!("{}: copied {n} finished cell(s) from {}", args.dir.display(), other.display());
+    }
     finalize(&args.dir, false)
+}
+
+fn read_info(dir: &Path) -> Result<(RunInfo, Manifest)> {
+    let info_path = dir.join("run.json");
+    let text = std::fs::read_to_string(&info_path)
+        .with_context(|| format!("{}: not an experiment directory (run `photonlab run` first)", info_path.display()))?;
+    let info: RunInfo = serde_json::from_str(&text).with_context(|| format!("{}: unreadable", info_path.display()))?;
+    let mtext = std::fs::read_to_string(dir.join("manifest.toml")).with_context(|| format!("{}: manifest copy missing", dir.display()))?;
+    let mdir = info.manifest.parent().map(Path::to_path_buf).unwrap_or_default();
+    let m = Manifest::parse(&mtext, &info.manifest, &mdir)?;
+    Ok((info, m))
+}
+
+/// Copies the cells finished in `from` (for `dir`'s manifest and references) that
+/// `dir` lacks; each record is copied last, so an interrupted copy is redone.
+pub fn import_cells(dir: &Path, from: &Path) -> Result<usize> {
+    let (info, m) = read_info(dir)?;
+    let mut n = 0;
+    for c in &m.cells {
+        let Some(r) = info.references.get(c.scene) else { continue };
+        if finished(dir, c, &r.key).is_some() || finished(from, c, &r.key).is_none() {
+            continue;
+        }
+        let (src, dst) = (CellPaths::new(from, &c.stem), CellPaths::new(dir, &c.stem));
+        for (a, b) in [(&src.exr, &dst.exr), (&src.png, &dst.png), (&src.relerr, &dst.relerr), (&src.json, &dst.json)] {
+            if a.is_file() {
+                let bytes = std::fs::read(a).with_context(|| format!("{}: cannot read", a.display()))?;
+                write_atomic(b, &bytes)?;
+            }
+        }
+        n += 1;
+    }
+    Ok(n)
 }
 
 #[cfg(test)]

@@ -329,13 +329,33 @@ pub fn write_summary(path: &Path, info: &SummaryInfo, stats: &[ConfigStats]) -> 
         let _ = writeln!(s, " {} | {} |", sig(c.time_s), count(c.rays.round()));
     }
 
-    let b = budgets(stats);
-    if !b.is_empty() {
-        let _ = writeln!(s, "\n## Best configuration per error budget\n");
-        let _ = writeln!(s, "The fastest configuration whose mean relative MSE is within each budget.\n");
+    // Budgets compare configurations of one scene (errors of different scenes are
+    // not comparable).
+    let mut scenes: Vec<Option<&Json>> = Vec::new();
+    for c in stats {
+        let sc = c.values.get("scene");
+        if !scenes.contains(&sc) {
+            scenes.push(sc);
+        }
+    }
+    let mut header_done = false;
+    for sc in scenes {
+        let of_scene: Vec<ConfigStats> = stats.iter().filter(|c| c.values.get("scene") == sc).cloned().collect();
+        let b = budgets(&of_scene);
+        if b.is_empty() {
+            continue;
+        }
+        if !header_done {
+            let _ = writeln!(s, "\n## Best configuration per error budget\n");
+            let _ = writeln!(s, "The fastest configuration whose mean relative MSE is within each budget.\n");
+            header_done = true;
+        }
+        if let Some(name) = sc {
+            let _ = writeln!(s, "Scene `{}`:\n", name.as_str().unwrap_or_default());
+        }
         let _ = writeln!(s, "| relMSE ≤ | fastest configuration | its relMSE | time (s) |\n|---:|---|---:|---:|");
         for budget in b {
-            let best = stats
+            let best = of_scene
                 .iter()
                 .filter(|c| c.relmse <= budget)
                 .min_by(|x, y| x.time_s.partial_cmp(&y.time_s).unwrap_or(std::cmp::Ordering::Equal));
@@ -343,6 +363,7 @@ pub fn write_summary(path: &Path, info: &SummaryInfo, stats: &[ConfigStats]) -> 
                 let _ = writeln!(s, "| {} | {} | {} | {} |", sig(budget), c.label, sig(c.relmse), sig(c.time_s));
             }
         }
+        let _ = writeln!(s);
     }
 
     // Phase times: accelerator build, the integrator's own timed phases (extra keys

@@ -6,7 +6,7 @@ use super::manifest::Manifest;
 use super::output::ConfigStats;
 use crate::plot::{LinePlot, Series, StackedBars, bar_plot, line_plot, log_log_slope};
 use anyhow::Result;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Axis label (with unit) for a swept key.
@@ -43,6 +43,25 @@ fn log_ok(vals: impl Iterator<Item = f64>) -> bool {
         hi = hi.max(v);
     }
     lo.is_finite() && hi / lo >= 10.0
+}
+
+/// The integrator's timed phases of a configuration (`extra` keys ending in `_s`)
+/// that do not overlap: taken longest first while they fit in the pre-pass time.
+/// A sub-phase is never longer than the phase containing it, so parents are taken
+/// first and their children no longer fit.
+fn disjoint_phases(c: &ConfigStats) -> Vec<&String> {
+    let mut keys: Vec<(&String, f64)> = c.extra.iter().filter(|(k, _)| k.ends_with("_s")).map(|(k, v)| (k, *v)).collect();
+    keys.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(b.0)));
+    let budget = c.preprocess_s * 1.001 + 1e-6;
+    let mut sum = 0.0;
+    let mut out = Vec::new();
+    for (k, v) in keys {
+        if sum + v <= budget {
+            sum += v;
+            out.push(k);
+        }
+    }
+    out
 }
 
 /// Draws every plot the data supports; returns (title, relative PNG path) pairs.
@@ -155,20 +174,25 @@ pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec
     }
 
     // Phase times: accel build, the integrator's timed phases, the rest of the
-    // pre-pass, render.
-    let phase_keys: BTreeSet<&String> = stats.iter().flat_map(|c| c.extra.keys()).filter(|k| k.ends_with("_s")).collect();
+    // pre-pass, render. Integrators may also report sub-phases (a kd-tree build
+    // inside the photon pass), so per configuration only a disjoint set is stacked.
+    let chosen: Vec<Vec<&String>> = stats.iter().map(disjoint_phases).collect();
+    let mut phase_keys: Vec<&String> = chosen.iter().flatten().copied().collect();
+    phase_keys.sort();
+    phase_keys.dedup();
     let mut layers: Vec<(String, Vec<f64>)> = vec![("accel build".into(), stats.iter().map(|c| c.accel_build_s).collect())];
     for k in &phase_keys {
-        layers.push((k.trim_end_matches("_s").replace('_', " "), stats.iter().map(|c| c.extra.get(*k).copied().unwrap_or(0.0)).collect()));
+        let vals =
+            stats.iter().zip(&chosen).map(|(c, ch)| if ch.contains(k) { c.extra.get(*k).copied().unwrap_or(0.0) } else { 0.0 }).collect();
+        layers.push((k.trim_end_matches("_s").replace('_', " "), vals));
     }
     let rest: Vec<f64> = stats
         .iter()
-        .map(|c| (c.preprocess_s - phase_keys.iter().map(|k| c.extra.get(*k).copied().unwrap_or(0.0)).sum::<f64>()).max(0.0))
+        .zip(&chosen)
+        .map(|(c, ch)| (c.preprocess_s - ch.iter().map(|k| c.extra.get(*k).copied().unwrap_or(0.0)).sum::<f64>()).max(0.0))
         .collect();
-    if !phase_keys.is_empty() && rest.iter().any(|r| *r > 1e-3) {
-        layers.push(("other pre-pass".into(), rest));
-    } else if phase_keys.is_empty() {
-        layers.push(("pre-pass".into(), stats.iter().map(|c| c.preprocess_s).collect()));
+    if rest.iter().any(|r| *r > 1e-3) || phase_keys.is_empty() {
+        layers.push((if phase_keys.is_empty() { "pre-pass" } else { "other pre-pass" }.into(), rest));
     }
     layers.push(("render".into(), stats.iter().map(|c| c.render_s).collect()));
     let title = "Time of each phase".to_string();
@@ -183,4 +207,45 @@ pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec
     )?;
     out.push((title, "plots/phase_times.png".into()));
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nested_phase_times_are_not_stacked_twice() {
+        let extra: BTreeMap<String, f64> = [
+            ("photon_pass_s", 0.15),
+            ("photon_trace_s", 0.12),
+            ("kdtree_build_s", 0.04),
+            ("precompute_s", 0.4),
+            ("prefill_s", 0.19),
+            ("photons_emitted", 9.0),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect();
+        let c = ConfigStats {
+            config_index: 0,
+            label: "x".into(),
+            group: "x".into(),
+            values: BTreeMap::new(),
+            first_stem: "x_r0".into(),
+            repeats: 1,
+            rmse: 0.0,
+            relmse: 0.0,
+            mae: 0.0,
+            time_s: 1.0,
+            accel_build_s: 0.0,
+            preprocess_s: 0.7401,
+            render_s: 0.25,
+            rays: 0.0,
+            extra,
+            split: None,
+        };
+        let mut got: Vec<&str> = disjoint_phases(&c).into_iter().map(String::as_str).collect();
+        got.sort();
+        assert_eq!(got, ["photon_pass_s", "precompute_s", "prefill_s"]);
+    }
 }

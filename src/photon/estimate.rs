@@ -152,4 +152,38 @@ mod tests {
         assert!(g > 0.3 && g < 1.0);
         assert!(Filter::parse("cone").is_ok() && Filter::parse("tent").is_err());
     }
+
+    /// The corner/step error the disc test exists for: photons of a brighter parallel
+    /// surface 1 cm above the query plane (same normal, so the normal test keeps them)
+    /// leak into a sphere-shaped estimate; a disc thinner than the offset keeps only the
+    /// query plane's photons and recovers its true irradiance.
+    #[test]
+    fn disc_rejects_a_parallel_surface_that_a_sphere_mixes_in() {
+        use crate::photon::kdtree::{KdTree, KnnHeap};
+        use crate::photon::record::Photon;
+        let (spacing, h) = (0.004f32, 0.01f32);
+        let (mut pos, mut items) = (Vec::new(), Vec::new());
+        for i in -60..60 {
+            for j in -60..60 {
+                let (x, z) = (i as f32 * spacing, j as f32 * spacing);
+                // Lower plane y = 0 everywhere, power 1 per photon.
+                pos.push(Vec3::new(x, 0.0, z));
+                items.push(Photon::new(Color::ONE, Vec3::Y, Vec3::Y));
+                // Upper plane y = h over x > 0, ten times brighter.
+                if x > 0.0 {
+                    pos.push(Vec3::new(x + 0.5 * spacing, h, z));
+                    items.push(Photon::new(Color::splat(10.0), Vec3::Y, Vec3::Y));
+                }
+            }
+        }
+        let map = KdTree::build_with(&pos, items);
+        let truth = 1.0 / (spacing * spacing); // irradiance of the lower plane alone
+        let e = |disc: f32| {
+            let prm = EstimateParams::new(200, 0.1, Filter::Box, disc);
+            irradiance(&map, Vec3::new(-0.01, 0.0, 0.0), Vec3::Y, &prm, &mut KnnHeap::default()).x
+        };
+        let (thin, sphere) = (e(0.05), e(1.0));
+        assert!((thin / truth - 1.0).abs() < 0.1, "disc: {thin} vs {truth}");
+        assert!(sphere > 1.5 * truth, "sphere: {sphere} vs {truth}: the upper plane should leak in");
+    }
 }
