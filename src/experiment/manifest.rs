@@ -707,12 +707,10 @@ impl SceneSpec {
     /// Builds the scene.
     pub fn load(&self, resolution: [u32; 2]) -> Result<Scene> {
         self.check_files()?;
-        let mut scene = match &self.source {
-            SceneSource::Builtin(b) => builtin(b)?,
-            SceneSource::File(p) => load_scene(p)?,
-            SceneSource::Empty => {
-                let c = self.camera.as_ref().ok_or_else(|| anyhow!("{}: [scene] needs a camera", self.at))?;
-                let cam = crate::camera::Camera::new(
+        // The manifest's camera, if it gives one (it replaces the scene's).
+        let camera = match &self.camera {
+            Some(c) => Some(
+                crate::camera::Camera::new(
                     Vec3::from_array(c.eye),
                     Vec3::from_array(c.look_at),
                     Vec3::from_array(c.up),
@@ -720,20 +718,20 @@ impl SceneSpec {
                     resolution[0],
                     resolution[1],
                 )
-                .map_err(|e| anyhow!("{}: [scene.camera]: {e}", self.at))?;
+                .map_err(|e| anyhow!("{}: [scene.camera]: {e}", self.at))?,
+            ),
+            None => None,
+        };
+        let mut scene = match &self.source {
+            SceneSource::Builtin(b) => builtin(b)?,
+            SceneSource::File(p) => load_scene(p)?,
+            SceneSource::Empty => {
+                let cam = camera.clone().ok_or_else(|| anyhow!("{}: [scene] needs a camera", self.at))?;
                 Scene::new("scene", cam)
             }
         };
-        if let Some(c) = &self.camera {
-            scene.camera = crate::camera::Camera::new(
-                Vec3::from_array(c.eye),
-                Vec3::from_array(c.look_at),
-                Vec3::from_array(c.up),
-                c.fov_y_deg,
-                resolution[0],
-                resolution[1],
-            )
-            .map_err(|e| anyhow!("{}: [scene.camera]: {e}", self.at))?;
+        if let Some(cam) = camera {
+            scene.camera = cam;
         }
         for m in &self.meshes {
             let obj = load_obj(&m.obj).map_err(|e| anyhow!("{}: {e}", self.at))?;
