@@ -80,6 +80,10 @@ pub fn parse_obj_geometry(text: &str, path: &Path) -> Result<(Vec<Vec3>, Vec<[Ve
                 for c in &mut xyz {
                     let tok = it.next().with_context(|| format!("{}:{}: vertex needs three coordinates", path.display(), ln + 1))?;
                     *c = tok.parse().with_context(|| format!("{}:{}: bad vertex coordinate `{tok}`", path.display(), ln + 1))?;
+                    // Rust parses "nan" and "inf"; a non-finite vertex would poison the BVH bounds.
+                    if !c.is_finite() {
+                        bail!("{}:{}: vertex coordinate `{tok}` is not finite", path.display(), ln + 1);
+                    }
                 }
                 verts.push(Vec3::from_array(xyz));
             }
@@ -594,6 +598,8 @@ mod tests {
         let e = parse_obj_geometry("v 0 0 0\nf 1 2 3\n", Path::new("bad.obj")).unwrap_err().to_string();
         assert!(e.contains("bad.obj:2") && e.contains("out of range"), "{e}");
         assert!(parse_obj_geometry("v 0 0\n", Path::new("b.obj")).is_err());
+        let e = parse_obj_geometry("v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n", Path::new("n.obj")).unwrap_err().to_string();
+        assert!(e.contains("n.obj:2") && e.contains("not finite"), "{e}");
         assert!(parse_obj_geometry("v 0 0 0\n", Path::new("b.obj")).unwrap_err().to_string().contains("no triangles"));
         assert!(parse_obj_geometry("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 0 2\n", Path::new("b.obj")).is_err());
     }
