@@ -205,13 +205,7 @@ pub struct Manifest {
     pub cells: Vec<Cell>,
 }
 
-/// 1-based line and column of a byte offset.
-pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
-}
+pub use crate::scene::loader::line_col;
 
 struct Loc<'a> {
     file: &'a Path,
