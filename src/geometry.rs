@@ -92,6 +92,20 @@ impl Aabb {
     pub fn is_empty(&self) -> bool {
         self.min.x > self.max.x
     }
+    /// Common part of two boxes ([`Aabb::EMPTY`] when they are disjoint).
+    #[inline]
+    pub fn intersection(&self, o: &Aabb) -> Aabb {
+        let b = Aabb { min: self.min.max(o.min), max: self.max.min(o.max) };
+        if b.min.cmpgt(b.max).any() { Aabb::EMPTY } else { b }
+    }
+    /// True when `p` lies in the box (boundary included).
+    pub fn contains_point(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+    /// True when `o` lies in the box (boundary included).
+    pub fn contains_box(&self, o: &Aabb) -> bool {
+        o.is_empty() || (self.contains_point(o.min) && self.contains_point(o.max))
+    }
 }
 
 /// Möller–Trumbore ray/triangle test with precomputed edges. Returns (t, b1, b2) for

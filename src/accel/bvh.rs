@@ -14,7 +14,7 @@ use glam::Vec3;
 /// Most SAH bins any build uses (array size).
 const MAX_BINS: usize = 32;
 /// The binary tree's leaf size and SAH node-visit cost (relative to a triangle test).
-const BINARY_PARAMS: BuildParams = BuildParams { max_leaf: 8, traversal_cost: 1.0, block: 1, bins: 16, presplit: 0.0 };
+const BINARY_PARAMS: BuildParams = BuildParams { max_leaf: 8, traversal_cost: 1.0, block: 1, bins: 16 };
 /// Build depth beyond which nodes are split by count (keeps the depth, and so the
 /// traversal stack, bounded: 64 + log2(2^32) < STACK).
 const MAX_SAH_DEPTH: usize = 64;
@@ -59,14 +59,11 @@ pub(crate) struct BuildParams {
     pub block: usize,
     /// SAH bins per axis (at most 32).
     pub bins: usize,
-    /// Extra references allowed for pre-splitting large triangles, as a fraction of
-    /// the triangle count (0 = none); see [`presplit`].
-    pub presplit: f32,
 }
 
 impl BuildParams {
     #[inline]
-    fn leaf_cost(&self, n: usize) -> f32 {
+    pub(crate) fn leaf_cost(&self, n: usize) -> f32 {
         n.div_ceil(self.block) as f32
     }
 }
@@ -74,109 +71,19 @@ impl BuildParams {
 /// Builds the binary SAH tree over `tris`; returns it with the triangle order its
 /// leaves index (None for an empty list).
 pub(crate) fn build_tree(tris: &[[Vec3; 3]], params: BuildParams) -> Option<(BuildNode, Vec<u32>)> {
-    let mut prims: Vec<Prim> = if params.presplit > 0.0 {
-        presplit(tris, (params.presplit * tris.len() as f32) as usize)
-    } else {
-        tris.iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let bounds = Aabb::of_triangle(t);
-                Prim { bounds, centroid: bounds.center(), index: i as u32 }
-            })
-            .collect()
-    };
+    let mut prims: Vec<Prim> = tris
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let bounds = Aabb::of_triangle(t);
+            Prim { bounds, centroid: bounds.center(), index: i as u32 }
+        })
+        .collect();
     if prims.is_empty() {
         return None;
     }
     let root = build_rec(&mut prims, 0, 0, &params);
     Some((root, prims.iter().map(|p| p.index).collect()))
-}
-
-/// Pre-splitting ("early split clipping", Ernst & Greiner 2007): large triangles,
-/// whose boxes are mostly empty space (long walls and floors), get several
-/// references with smaller boxes, which is most of what spatial splits (SBVH) buy.
-/// The largest reference box is split at the middle of its longest axis, each half
-/// bounded by the triangle part on that side, until `budget` extra references are
-/// used or no box is larger than 8× the mean. Each part box is widened by a few ulps
-/// of the triangle's box (and kept inside it), so float rounding at the cut never
-/// uncovers a point of the triangle. The order of splits is deterministic.
-fn presplit(tris: &[[Vec3; 3]], budget: usize) -> Vec<Prim> {
-    use std::cmp::Ordering;
-    use std::collections::BinaryHeap;
-    struct Item(f32, u32, Aabb);
-    impl PartialEq for Item {
-        fn eq(&self, o: &Self) -> bool {
-            self.cmp(o) == Ordering::Equal
-        }
-    }
-    impl Eq for Item {}
-    impl PartialOrd for Item {
-        fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-            Some(self.cmp(o))
-        }
-    }
-    impl Ord for Item {
-        fn cmp(&self, o: &Self) -> Ordering {
-            self.0.total_cmp(&o.0).then(o.1.cmp(&self.1))
-        }
-    }
-    let boxes: Vec<Aabb> = tris.iter().map(Aabb::of_triangle).collect();
-    let mean = boxes.iter().map(|b| b.area() as f64).sum::<f64>() / boxes.len().max(1) as f64;
-    let threshold = (8.0 * mean) as f32;
-    let mut heap: BinaryHeap<Item> = boxes.iter().enumerate().map(|(i, b)| Item(b.area(), i as u32, *b)).collect();
-    let mut done = Vec::with_capacity(tris.len() + budget);
-    let mut extra = 0;
-    while let Some(Item(area, i, b)) = heap.pop() {
-        if extra >= budget || area <= threshold || area == 0.0 {
-            done.push((i, b));
-            done.extend(heap.drain().map(|Item(_, i, b)| (i, b)));
-            break;
-        }
-        let axis = b.diagonal().max_position();
-        let c = 0.5 * (b.min[axis] + b.max[axis]);
-        let t = &tris[i as usize];
-        let whole = &boxes[i as usize];
-        let pad = whole.diagonal() * (4.0 * f32::EPSILON) + Vec3::splat(f32::MIN_POSITIVE);
-        let mut halves = [Aabb::EMPTY; 2];
-        for k in 0..3 {
-            let (p, q) = (t[k], t[(k + 1) % 3]);
-            halves[(p[axis] > c) as usize].grow(p);
-            if (p[axis] <= c) != (q[axis] <= c) {
-                // The edge crosses the plane: its crossing point bounds both sides.
-                let s = (c - p[axis]) / (q[axis] - p[axis]);
-                let mut x = p + (q - p) * s;
-                x[axis] = c;
-                halves[0].grow(x);
-                halves[1].grow(x);
-            }
-        }
-        let mut parts = 0;
-        let mut cut = [Aabb::EMPTY; 2];
-        for (h, side) in halves.iter().zip(&mut cut) {
-            if h.is_empty() {
-                continue;
-            }
-            let mut hb = Aabb { min: (h.min - pad).max(b.min), max: (h.max + pad).min(b.max) };
-            // Stay on this side of the cut (with the padding) and inside the parent box.
-            hb.min = hb.min.max(whole.min);
-            hb.max = hb.max.min(whole.max);
-            *side = hb;
-            parts += 1;
-        }
-        if parts < 2 {
-            done.push((i, b));
-            continue;
-        }
-        extra += 1;
-        for hb in cut {
-            heap.push(Item(hb.area(), i, hb));
-        }
-    }
-    // Heap order depends only on (area, index), so this order is deterministic.
-    done.sort_by(|a, b| {
-        a.0.cmp(&b.0).then(a.1.min.x.total_cmp(&b.1.min.x)).then(a.1.min.y.total_cmp(&b.1.min.y)).then(a.1.min.z.total_cmp(&b.1.min.z))
-    });
-    done.into_iter().map(|(i, b)| Prim { bounds: b, centroid: b.center(), index: i }).collect()
 }
 
 /// Binary BVH.
@@ -546,49 +453,6 @@ mod tests {
             assert!(hits > n / 2 && occluded > n as u32 / 10 && u64::from(occluded) < hits, "{name}: {hits} hits, {occluded} occluded");
             assert_eq!(s1.rays, s2.rays);
             assert!(s2.tri_tests * 10 < s1.tri_tests, "{name} should test far fewer triangles");
-        }
-    }
-
-    /// Pre-split parts cover their triangle (every sampled point lies in a part box),
-    /// stay inside its box, and shrink the total box area of long thin triangles.
-    #[test]
-    fn presplit_parts_cover_their_triangles() {
-        let mut tris = vec![
-            [Vec3::new(-10.0, 0.0, 0.0), Vec3::new(10.0, 0.1, 0.0), Vec3::new(-10.0, 0.2, 8.0)],
-            [Vec3::new(0.0, -5.0, 1.0), Vec3::new(0.3, 5.0, 1.0), Vec3::new(0.1, 5.0, 1.5)],
-        ];
-        // Many small triangles set the mean box area the threshold is relative to.
-        for k in 0..300 {
-            let c = Vec3::new(k as f32 * 0.01, 0.0, 0.0);
-            tris.push([c, c + Vec3::new(0.01, 0.0, 0.0), c + Vec3::new(0.0, 0.01, 0.0)]);
-        }
-        let prims = presplit(&tris, 200);
-        // The two large triangles are split until their parts are below 8× the mean.
-        assert!(prims.len() > tris.len() + 20 && prims.len() <= tris.len() + 200, "{}", prims.len());
-        for (i, t) in tris.iter().enumerate().take(3) {
-            let whole = Aabb::of_triangle(t);
-            let parts: Vec<&Prim> = prims.iter().filter(|p| p.index == i as u32).collect();
-            let largest = parts.iter().map(|p| p.bounds.area()).fold(0.0, f32::max);
-            if i < 2 {
-                assert!(parts.len() >= [10, 2][i] && largest < 0.6 * whole.area(), "triangle {i}: {} parts", parts.len());
-            } else {
-                assert_eq!(parts.len(), 1);
-            }
-            for p in &parts {
-                assert!(p.bounds.min.cmpge(whole.min).all() && p.bounds.max.cmple(whole.max).all());
-            }
-            for k in 0..20_000u64 {
-                let (mut a, mut b) = (unit(hash_words(&[k, 11])), unit(hash_words(&[k, 12])));
-                if a + b > 1.0 {
-                    (a, b) = (1.0 - a, 1.0 - b);
-                }
-                let x = t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b;
-                let x = x.clamp(whole.min, whole.max);
-                assert!(
-                    parts.iter().any(|p| p.bounds.min.cmple(x).all() && p.bounds.max.cmpge(x).all()),
-                    "triangle {i}: point {x} uncovered"
-                );
-            }
         }
     }
 

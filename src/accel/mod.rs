@@ -8,6 +8,7 @@ pub mod bvh;
 pub mod bvh4;
 pub mod bvh8;
 pub mod linear;
+mod sbvh;
 
 use crate::geometry::{Hit, Ray};
 use glam::Vec3;
@@ -50,6 +51,11 @@ pub trait Accel: Send + Sync {
     fn occluded(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool;
     /// Bytes used by the structure (nodes + its triangle copy).
     fn memory_bytes(&self) -> usize;
+    /// SAH cost of the tree with node-visit and block-test costs 1, relative to the
+    /// root's area, as Embree's build statistics print it (for comparing tree quality).
+    fn sah_cost(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// Triangle in the form the intersection test wants.

@@ -459,6 +459,8 @@ pub struct BenchRow {
     pub tri_tests_per_ray: f64,
     /// Bytes of the structure (nodes + triangle data).
     pub memory_bytes: usize,
+    /// SAH cost as Embree's `verbose=3` statistics print it (wide BVHs only).
+    pub sah: Option<f64>,
 }
 
 /// Builds `name` over the mesh `builds` times with `threads` build threads; returns
@@ -528,6 +530,7 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
                 node_tests_per_ray: r.stats.node_tests as f64 / n,
                 tri_tests_per_ray: r.stats.tri_tests as f64 / n,
                 memory_bytes: acc.memory_bytes(),
+                sah: acc.sah_cost(),
             });
         }
     }
