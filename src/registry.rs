@@ -1,7 +1,7 @@
 //! The one place where configuration names become plug-ins. To add a strategy,
 //! implement its trait in its family's folder and add one arm here.
 
-use crate::accel::{Accel, bvh::Bvh, bvh4::Bvh4, bvh8::Bvh8, linear::Linear};
+use crate::accel::{Accel, bvh::Bvh, bvh4::Bvh4, bvh8::Bvh8, bvh8q::Bvh8q, linear::Linear};
 use crate::config::{RenderConfig, StrategySpec};
 use crate::integrator::{Integrator, path::PathIntegrator, photon::PhotonIntegrator};
 use crate::rr::{RussianRoulette, albedo::Albedo, fixed::Fixed, off::Off, throughput::Throughput};
@@ -12,7 +12,7 @@ use glam::Vec3;
 /// Sampler names.
 pub const SAMPLERS: &[&str] = &["random", "halton", "hammersley"];
 /// Accelerator names.
-pub const ACCELS: &[&str] = &["none", "bvh", "bvh4", "bvh8"];
+pub const ACCELS: &[&str] = &["none", "bvh", "bvh4", "bvh8", "bvh8q"];
 /// Russian-roulette policy names.
 pub const RR_POLICIES: &[&str] = &["off", "fixed", "albedo", "throughput"];
 /// Integrator names.
@@ -48,6 +48,7 @@ pub fn make_accel(name: &str, tris: &[[Vec3; 3]]) -> Result<Box<dyn Accel>> {
         "bvh" => Box::new(Bvh::build(tris)),
         "bvh4" => Box::new(Bvh4::build(tris)),
         "bvh8" => Box::new(Bvh8::build(tris)),
+        "bvh8q" => Box::new(Bvh8q::build_quantized(tris)),
         _ => return Err(unknown("accel", name, ACCELS)),
     })
 }

@@ -26,6 +26,7 @@
 //! 1.02–1.10× (two builds alternating in `bench accel`, 2026-11-23).
 
 use super::bvh::{BuildNode, BuildParams};
+use super::bvh8q::QNode;
 use super::{Accel, PreTriangle, TraversalStats};
 use crate::geometry::{Hit, Ray};
 use glam::Vec3;
@@ -54,10 +55,10 @@ const MAX_DEPTH: usize = 96;
 /// A wide node: N child boxes (SoA) and child references.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-struct Node<const N: usize> {
-    lo: [[f32; N]; 3],
-    hi: [[f32; N]; 3],
-    child: [u32; N],
+pub(crate) struct Node<const N: usize> {
+    pub(crate) lo: [[f32; N]; 3],
+    pub(crate) hi: [[f32; N]; 3],
+    pub(crate) child: [u32; N],
 }
 
 impl<const N: usize> Node<N> {
@@ -166,11 +167,20 @@ impl TriBlock {
 
 /// Wide BVH with N children per node (4 or 8).
 pub struct WideBvh<const N: usize> {
+    /// Float nodes (empty when quantised).
     nodes: Vec<Node<N>>,
+    /// Quantised nodes (`bvh8q`; empty otherwise), same indices.
+    qnodes: Vec<QNode<N>>,
     blocks: Vec<TriBlock>,
     depth: usize,
+    /// Largest coordinate magnitude per axis (for the quantised nodes' slack).
+    cmax: [f32; 3],
+    /// Shape statistics, taken at build time.
+    shape: Shape,
     /// AVX2 traversal chosen at build time (runtime CPU detection).
     simd: bool,
+    /// Quantised nodes (`bvh8q`).
+    quant: bool,
 }
 
 /// Shape of a wide BVH, for comparison with Embree's build statistics.
@@ -204,6 +214,8 @@ struct RayPre {
     /// Byte offsets in a node of the near (x, y, z) then far (x, y, z) plane arrays,
     /// chosen once per ray so the node test does no per-node selection.
     planes: [usize; 6],
+    /// The same for quantised nodes (byte arrays qlo[3][N] then qhi[3][N]).
+    qplanes: [usize; 6],
     /// o·inv per axis, for the fused-multiply-subtract form of the AVX2 node test.
     oi: [f32; 3],
     /// Absolute error bound of that form's distances: rounding o·inv loses up to
@@ -226,7 +238,9 @@ impl RayPre {
         let hi = |a: usize| (3 + a) * N * 4;
         let pick = |a: usize, near: bool| if neg[a] == near { hi(a) } else { lo(a) };
         let planes = [pick(0, true), pick(1, true), pick(2, true), pick(0, false), pick(1, false), pick(2, false)];
-        RayPre { o, inv, neg, planes, oi, slack: 4.0 * f32::EPSILON * big }
+        let qpick = |a: usize, near: bool| if neg[a] == near { (3 + a) * N } else { a * N };
+        let qplanes = [qpick(0, true), qpick(1, true), qpick(2, true), qpick(0, false), qpick(1, false), qpick(2, false)];
+        RayPre { o, inv, neg, planes, qplanes, oi, slack: 4.0 * f32::EPSILON * big }
     }
 }
 
@@ -288,6 +302,49 @@ fn node_test<const N: usize, const AVX: bool>(n: &Node<N>, r: &RayPre, t_max: f3
     mask
 }
 
+/// [`node_test`] for a quantised node: plane distance (origin − o)/d + q·(scale/d).
+/// The distances may err by the ray's slack (which then includes
+/// [`QNode::slack`]) but never cull a box the ray crosses.
+#[inline(always)]
+fn qnode_test<const N: usize, const AVX: bool>(n: &QNode<N>, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> u32 {
+    let mut s = [0.0f32; 3];
+    let mut b = [0.0f32; 3];
+    for a in 0..3 {
+        s[a] = n.scale[a] * r.inv[a];
+        b[a] = (n.origin[a] - r.o[a]) * r.inv[a];
+    }
+    let base = n as *const QNode<N> as *const u8;
+    #[cfg(target_arch = "x86_64")]
+    if N == 8 && AVX {
+        let planes = r.qplanes.map(|off| base.wrapping_add(off));
+        // SAFETY: AVX is true only inside the AVX2 traversal (CPU checked at build);
+        // every plane pointer addresses 8 bytes of the node, `tmin` holds 8 floats.
+        return unsafe { x86::qnode_test8(&planes, &s, &b, r, t_max, tmin.as_mut_ptr()) } & n.valid;
+    }
+    // SAFETY: every offset addresses one of the node's six N-byte plane arrays.
+    let plane = |k: usize| unsafe { &*(base.add(r.qplanes[k]) as *const [u8; N]) };
+    let mut hit = [false; N];
+    for i in 0..N {
+        let t = |k: usize| (plane(k)[i] as f32).mul_add(s[k % 3], b[k % 3]);
+        let (tnx, tny, tnz, tfx, tfy, tfz) = (t(0), t(1), t(2), t(3), t(4), t(5));
+        let mut t0 = 0.0f32;
+        t0 = if tnx > t0 { tnx } else { t0 };
+        t0 = if tny > t0 { tny } else { t0 };
+        t0 = if tnz > t0 { tnz } else { t0 };
+        let mut t1 = t_max;
+        t1 = if tfx < t1 { tfx } else { t1 };
+        t1 = if tfy < t1 { tfy } else { t1 };
+        t1 = if tfz < t1 { tfz } else { t1 };
+        tmin[i] = t0;
+        hit[i] = t0 <= t1 * ROBUST + r.slack;
+    }
+    let mut mask = 0u32;
+    for (i, h) in hit.iter().enumerate() {
+        mask |= (*h as u32) << i;
+    }
+    mask & n.valid
+}
+
 /// The node test with explicit vector instructions: the lane loop above compiles to
 /// the same arithmetic, but LLVM turns its hit mask into a chain of packs instead of
 /// one `movmskps`, which cost ~15 % of the traversal.
@@ -311,6 +368,30 @@ mod x86 {
                 let inv = _mm256_set1_ps(r.inv[a]);
                 let tn = _mm256_fmsub_ps(_mm256_loadu_ps(planes[a]), inv, oi);
                 let tf = _mm256_fmsub_ps(_mm256_loadu_ps(planes[3 + a]), inv, oi);
+                // max/min return the second operand when either is NaN: the accumulator.
+                t0 = _mm256_max_ps(tn, t0);
+                t1 = _mm256_min_ps(tf, t1);
+            }
+            t1 = _mm256_fmadd_ps(t1, _mm256_set1_ps(ROBUST), _mm256_set1_ps(r.slack));
+            _mm256_storeu_ps(tmin, t0);
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32
+        }
+    }
+
+    /// 8 quantised lanes with AVX2/FMA: bytes widened to floats, then one fused
+    /// multiply-add per plane. Safety: the CPU must support AVX2 and FMA; `planes`
+    /// must point to 8 bytes each and `tmin` to 8 floats.
+    #[inline(always)]
+    pub(super) unsafe fn qnode_test8(planes: &[*const u8; 6], s: &[f32; 3], b: &[f32; 3], r: &RayPre, t_max: f32, tmin: *mut f32) -> u32 {
+        unsafe {
+            let mut t0 = _mm256_setzero_ps();
+            let mut t1 = _mm256_set1_ps(t_max);
+            let q = |p: *const u8| _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(p as *const __m128i)));
+            for a in 0..3 {
+                let sv = _mm256_set1_ps(s[a]);
+                let bv = _mm256_set1_ps(b[a]);
+                let tn = _mm256_fmadd_ps(q(planes[a]), sv, bv);
+                let tf = _mm256_fmadd_ps(q(planes[3 + a]), sv, bv);
                 // max/min return the second operand when either is NaN: the accumulator.
                 t0 = _mm256_max_ps(tn, t0);
                 t1 = _mm256_min_ps(tf, t1);
@@ -457,13 +538,23 @@ fn collapse<const N: usize>(node: &BuildNode, out: &mut Collapse<N>, depth: usiz
 impl<const N: usize> WideBvh<N> {
     /// Builds the hierarchy over `tris`.
     pub fn build(tris: &[[Vec3; 3]]) -> Self {
+        Self::build_impl(tris, false)
+    }
+
+    /// Builds the hierarchy over `tris` with quantised nodes (`bvh8q`).
+    pub fn build_quantized(tris: &[[Vec3; 3]]) -> Self {
+        Self::build_impl(tris, true)
+    }
+
+    fn build_impl(tris: &[[Vec3; 3]], quant: bool) -> Self {
         assert!(N == 4 || N == 8, "wide BVH supports 4 or 8 children");
         const { assert!(MAX_LEAF <= 4 * LEAF_BLOCKS, "a leaf must fit its triangle blocks") };
         let simd = detect_simd();
         let Some((root, order)) =
             super::sbvh::build(tris, &BuildParams { max_leaf: MAX_LEAF, traversal_cost: TRAVERSAL_COST, block: 4, bins: 16 }, SPATIAL)
         else {
-            return WideBvh { nodes: Vec::new(), blocks: Vec::new(), depth: 0, simd };
+            let (nodes, qnodes, blocks) = (Vec::new(), Vec::new(), Vec::new());
+            return WideBvh { nodes, qnodes, blocks, depth: 0, cmax: [0.0; 3], shape: Shape::default(), simd, quant };
         };
         // Upper bounds (a leaf holds at least one triangle, a node at least two
         // children), reserved up front so the huge-page hint covers the final arrays.
@@ -481,12 +572,31 @@ impl<const N: usize> WideBvh<N> {
             out.nodes.push(n);
         }
         assert!(out.depth <= MAX_DEPTH, "bvh{N}: tree depth {} exceeds the traversal stack", out.depth);
-        WideBvh { nodes: out.nodes, blocks: out.blocks, depth: out.depth, simd }
+        let b = root.bounds();
+        let cmax = [0, 1, 2].map(|a| b.min[a].abs().max(b.max[a].abs()));
+        let mut w = WideBvh {
+            nodes: out.nodes,
+            qnodes: Vec::new(),
+            blocks: out.blocks,
+            depth: out.depth,
+            cmax,
+            shape: Shape::default(),
+            simd,
+            quant,
+        };
+        w.shape = w.float_shape();
+        if quant {
+            let mut q = huge_vec(w.nodes.len());
+            q.extend(w.nodes.iter().map(|n| QNode::from_node(n, EMPTY)));
+            w.qnodes = q;
+            w.nodes = Vec::new();
+        }
+        w
     }
 
     /// Number of nodes.
     pub fn node_count(&self) -> usize {
-        self.nodes.len()
+        self.nodes.len().max(self.qnodes.len())
     }
 
     /// Depth of the tree in wide nodes.
@@ -495,12 +605,12 @@ impl<const N: usize> WideBvh<N> {
     }
 
     #[inline(always)]
-    fn intersect_impl<const AVX: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+    fn intersect_impl<const AVX: bool, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
         stats.rays += 1;
-        if self.nodes.is_empty() {
+        if self.nodes.is_empty() && self.qnodes.is_empty() {
             return None;
         }
-        let r = RayPre::new::<N>(ray);
+        let r = self.ray_pre::<Q>(ray);
         let (o, d) = (ray.o, ray.d);
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
@@ -511,33 +621,32 @@ impl<const N: usize> WideBvh<N> {
         let (mut node_tests, mut tri_tests) = (0u64, 0u64);
         loop {
             if cur & LEAF == 0 {
-                let node = self.node(cur);
+                let (mut mask, child) = self.visit::<AVX, Q>(cur, &r, t_best, &mut tmin);
                 node_tests += N as u64;
-                let mut mask = node_test::<N, AVX>(node, &r, t_best, &mut tmin);
                 if mask != 0 {
                     let i = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
                     if mask == 0 {
-                        cur = node.child[i];
+                        cur = child[i];
                         continue;
                     }
                     let j = mask.trailing_zeros() as usize;
                     if mask & (mask - 1) == 0 {
                         // Two (the common case): no sort.
                         let (near, far) = if tmin[j] < tmin[i] { (j, i) } else { (i, j) };
-                        self.prefetch(node.child[far]);
-                        stack.push((node.child[far], tmin[far]));
-                        cur = node.child[near];
+                        self.prefetch::<Q>(child[far]);
+                        stack.push((child[far], tmin[far]));
+                        cur = child[near];
                         continue;
                     }
                     // Two or more: visit the nearest now, stack the rest farthest first.
                     let mut hits: [(u32, f32); N] = [(0, 0.0); N];
-                    hits[0] = (node.child[i], tmin[i]);
+                    hits[0] = (child[i], tmin[i]);
                     let mut k = 1;
                     while mask != 0 {
                         let i = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
-                        let e = (node.child[i], tmin[i]);
+                        let e = (child[i], tmin[i]);
                         // Insertion sort, descending by distance.
                         let mut j = k;
                         while j > 0 && hits[j - 1].1 < e.1 {
@@ -548,7 +657,7 @@ impl<const N: usize> WideBvh<N> {
                         k += 1;
                     }
                     for h in &hits[..k - 1] {
-                        self.prefetch(h.0);
+                        self.prefetch::<Q>(h.0);
                         stack.push(*h);
                     }
                     cur = hits[k - 1].0;
@@ -593,12 +702,12 @@ impl<const N: usize> WideBvh<N> {
     }
 
     #[inline(always)]
-    fn occluded_impl<const AVX: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
+    fn occluded_impl<const AVX: bool, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
         stats.shadow_rays += 1;
-        if self.nodes.is_empty() {
+        if self.nodes.is_empty() && self.qnodes.is_empty() {
             return false;
         }
-        let r = RayPre::new::<N>(ray);
+        let r = self.ray_pre::<Q>(ray);
         let (o, d) = (ray.o, ray.d);
         let mut stack = Stack::<STACK>::new();
         let mut cur = 0u32;
@@ -607,9 +716,8 @@ impl<const N: usize> WideBvh<N> {
         let (mut node_tests, mut tri_tests) = (0u64, 0u64);
         loop {
             if cur & LEAF == 0 {
-                let node = self.node(cur);
+                let (mut mask, child) = self.visit::<AVX, Q>(cur, &r, t_max, &mut tmin);
                 node_tests += N as u64;
-                let mut mask = node_test::<N, AVX>(node, &r, t_max, &mut tmin);
                 if mask != 0 {
                     // Any order finds an occluder; go down the first, stack the others.
                     let i = mask.trailing_zeros() as usize;
@@ -617,9 +725,9 @@ impl<const N: usize> WideBvh<N> {
                     while mask != 0 {
                         let j = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
-                        stack.push((node.child[j], 0.0));
+                        stack.push((child[j], 0.0));
                     }
-                    cur = node.child[i];
+                    cur = child[i];
                     continue;
                 }
             } else {
@@ -646,6 +754,10 @@ impl<const N: usize> WideBvh<N> {
     /// Shape statistics in the form Embree prints them (`verbose=3`): the SAH cost
     /// with node-visit and block-test costs 1, relative to the root's area.
     pub fn shape(&self) -> Shape {
+        self.shape
+    }
+
+    fn float_shape(&self) -> Shape {
         let mut sh = Shape::default();
         if self.nodes.is_empty() {
             return sh;
@@ -704,6 +816,31 @@ impl<const N: usize> WideBvh<N> {
         unsafe { self.blocks.get_unchecked(range) }
     }
 
+    /// Per-ray values; with quantised nodes the slack also covers their rounding.
+    #[inline(always)]
+    fn ray_pre<const Q: bool>(&self, ray: &Ray) -> RayPre {
+        let mut r = RayPre::new::<N>(ray);
+        if Q {
+            r.slack += QNode::<N>::slack(r.o, r.inv, self.cmax);
+        }
+        r
+    }
+
+    /// Tests the ray against the children of interior node `cur`: the hit mask
+    /// (entry distances in `tmin`) and the child references.
+    #[inline(always)]
+    fn visit<const AVX: bool, const Q: bool>(&self, cur: u32, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> (u32, &[u32; N]) {
+        if Q {
+            debug_assert!((cur as usize) < self.qnodes.len());
+            // SAFETY: as in `node`, for the quantised copy of the node array.
+            let q = unsafe { self.qnodes.get_unchecked(cur as usize) };
+            (qnode_test::<N, AVX>(q, r, t_max, tmin), &q.child)
+        } else {
+            let n = self.node(cur);
+            (node_test::<N, AVX>(n, r, t_max, tmin), &n.child)
+        }
+    }
+
     /// The node of an interior reference.
     #[inline(always)]
     fn node(&self, child: u32) -> &Node<N> {
@@ -716,12 +853,16 @@ impl<const N: usize> WideBvh<N> {
     /// Starts fetching a stacked child (its node's four lines or its triangle block),
     /// so that the memory latency overlaps the traversal of the nearer children.
     #[inline(always)]
-    fn prefetch(&self, child: u32) {
+    fn prefetch<const Q: bool>(&self, child: u32) {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
             let (p, lines) = if child & LEAF == 0 {
-                (self.nodes.as_ptr().wrapping_add(child as usize) as *const i8, 4)
+                if Q {
+                    (self.qnodes.as_ptr().wrapping_add(child as usize) as *const i8, 2)
+                } else {
+                    (self.nodes.as_ptr().wrapping_add(child as usize) as *const i8, 4)
+                }
             } else {
                 (self.blocks.as_ptr().wrapping_add(((child & !LEAF) >> 3) as usize) as *const i8, (3 + 5 * (child & 7) as usize / 2).min(8))
             };
@@ -735,13 +876,17 @@ impl<const N: usize> WideBvh<N> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn intersect_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
-        self.intersect_impl::<true>(ray, t_max, stats)
+        if self.quant {
+            self.intersect_impl::<true, true>(ray, t_max, stats)
+        } else {
+            self.intersect_impl::<true, false>(ray, t_max, stats)
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn occluded_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
-        self.occluded_impl::<true>(ray, t_max, stats)
+        if self.quant { self.occluded_impl::<true, true>(ray, t_max, stats) } else { self.occluded_impl::<true, false>(ray, t_max, stats) }
     }
 }
 
@@ -784,7 +929,11 @@ fn detect_simd() -> bool {
 
 impl<const N: usize> Accel for WideBvh<N> {
     fn name(&self) -> &'static str {
-        if N == 8 { "bvh8" } else { "bvh4" }
+        match (N, self.quant) {
+            (8, true) => "bvh8q",
+            (8, false) => "bvh8",
+            _ => "bvh4",
+        }
     }
 
     fn intersect(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
@@ -793,7 +942,11 @@ impl<const N: usize> Accel for WideBvh<N> {
             // SAFETY: `simd` is set only when the CPU reports AVX2 and FMA.
             return unsafe { self.intersect_avx2(ray, t_max, stats) };
         }
-        self.intersect_impl::<false>(ray, t_max, stats)
+        if self.quant {
+            self.intersect_impl::<false, true>(ray, t_max, stats)
+        } else {
+            self.intersect_impl::<false, false>(ray, t_max, stats)
+        }
     }
 
     fn occluded(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
@@ -802,11 +955,17 @@ impl<const N: usize> Accel for WideBvh<N> {
             // SAFETY: as in `intersect`.
             return unsafe { self.occluded_avx2(ray, t_max, stats) };
         }
-        self.occluded_impl::<false>(ray, t_max, stats)
+        if self.quant {
+            self.occluded_impl::<false, true>(ray, t_max, stats)
+        } else {
+            self.occluded_impl::<false, false>(ray, t_max, stats)
+        }
     }
 
     fn memory_bytes(&self) -> usize {
-        self.nodes.len() * std::mem::size_of::<Node<N>>() + self.blocks.len() * std::mem::size_of::<TriBlock>()
+        self.nodes.len() * std::mem::size_of::<Node<N>>()
+            + self.qnodes.len() * std::mem::size_of::<QNode<N>>()
+            + self.blocks.len() * std::mem::size_of::<TriBlock>()
     }
 
     fn sah_cost(&self) -> Option<f64> {

@@ -1,5 +1,5 @@
 //! Ray-scene intersection structures (plug-ins chosen by name: `none`, `bvh`,
-//! `bvh4`, `bvh8`).
+//! `bvh4`, `bvh8`, `bvh8q`).
 //!
 //! Every implementation uses [`crate::geometry::intersect_triangle`] on the same
 //! precomputed (v0, e1, e2) data, so all return the same closest hit.
@@ -7,6 +7,7 @@
 pub mod bvh;
 pub mod bvh4;
 pub mod bvh8;
+pub mod bvh8q;
 pub mod linear;
 mod sbvh;
 
