@@ -366,21 +366,17 @@ mod x86 {
     /// must point to 8 floats each.
     #[inline(always)]
     pub(super) unsafe fn node_test8(planes: &[*const f32; 6], r: &RayPre, t_max: f32, tmin: *mut f32) -> u32 {
+        // SAFETY: the caller's guarantees (AVX2/FMA; 8 floats behind every pointer).
         unsafe {
-            let mut t0 = _mm256_setzero_ps();
-            let mut t1 = _mm256_set1_ps(t_max);
-            for a in 0..3 {
-                let oi = _mm256_set1_ps(r.oi[a]);
-                let inv = _mm256_set1_ps(r.inv[a]);
-                let tn = _mm256_fmsub_ps(_mm256_loadu_ps(planes[a]), inv, oi);
-                let tf = _mm256_fmsub_ps(_mm256_loadu_ps(planes[3 + a]), inv, oi);
-                // max/min return the second operand when either is NaN: the accumulator.
-                t0 = _mm256_max_ps(tn, t0);
-                t1 = _mm256_min_ps(tf, t1);
-            }
-            t1 = _mm256_fmadd_ps(t1, _mm256_set1_ps(ROBUST), _mm256_set1_ps(r.slack));
-            _mm256_storeu_ps(tmin, t0);
-            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32
+            slabs8(
+                |k| {
+                    let a = k % 3;
+                    _mm256_fmsub_ps(_mm256_loadu_ps(planes[k]), _mm256_set1_ps(r.inv[a]), _mm256_set1_ps(r.oi[a]))
+                },
+                r,
+                t_max,
+                tmin,
+            )
         }
     }
 
@@ -389,18 +385,35 @@ mod x86 {
     /// must point to 8 bytes each and `tmin` to 8 floats.
     #[inline(always)]
     pub(super) unsafe fn qnode_test8(planes: &[*const u8; 6], s: &[f32; 3], b: &[f32; 3], r: &RayPre, t_max: f32, tmin: *mut f32) -> u32 {
+        // SAFETY: the caller's guarantees (AVX2/FMA; 8 bytes behind every plane
+        // pointer, 8 floats at `tmin`).
+        unsafe {
+            slabs8(
+                |k| {
+                    let a = k % 3;
+                    let q = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(planes[k] as *const __m128i)));
+                    _mm256_fmadd_ps(q, _mm256_set1_ps(s[a]), _mm256_set1_ps(b[a]))
+                },
+                r,
+                t_max,
+                tmin,
+            )
+        }
+    }
+
+    /// The slab test of 8 boxes given the plane distances `t(k)` (near x, y, z, far
+    /// x, y, z): entry distances to `tmin`, the hit mask returned, the far distance
+    /// widened by [`ROBUST`] and the ray's slack. Safety: AVX2 and FMA; `tmin` must
+    /// point to 8 floats.
+    #[inline(always)]
+    unsafe fn slabs8(t: impl Fn(usize) -> __m256, r: &RayPre, t_max: f32, tmin: *mut f32) -> u32 {
         unsafe {
             let mut t0 = _mm256_setzero_ps();
             let mut t1 = _mm256_set1_ps(t_max);
-            let q = |p: *const u8| _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(p as *const __m128i)));
             for a in 0..3 {
-                let sv = _mm256_set1_ps(s[a]);
-                let bv = _mm256_set1_ps(b[a]);
-                let tn = _mm256_fmadd_ps(q(planes[a]), sv, bv);
-                let tf = _mm256_fmadd_ps(q(planes[3 + a]), sv, bv);
                 // max/min return the second operand when either is NaN: the accumulator.
-                t0 = _mm256_max_ps(tn, t0);
-                t1 = _mm256_min_ps(tf, t1);
+                t0 = _mm256_max_ps(t(a), t0);
+                t1 = _mm256_min_ps(t(3 + a), t1);
             }
             t1 = _mm256_fmadd_ps(t1, _mm256_set1_ps(ROBUST), _mm256_set1_ps(r.slack));
             _mm256_storeu_ps(tmin, t0);

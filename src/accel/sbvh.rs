@@ -205,25 +205,10 @@ impl Ctx<'_> {
                 bin_count[b] += 1;
                 bin_bounds[b] = bin_bounds[b].union(&r.bounds);
             }
-            let (mut right_box, mut right_count) = ([Aabb::EMPTY; OBJECT_BINS], [0usize; OBJECT_BINS]);
-            let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-            for i in (1..OBJECT_BINS).rev() {
-                acc = acc.union(&bin_bounds[i]);
-                cnt += bin_count[i];
-                right_box[i] = acc;
-                right_count[i] = cnt;
-            }
-            let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-            for i in 0..OBJECT_BINS - 1 {
-                acc = acc.union(&bin_bounds[i]);
-                cnt += bin_count[i];
-                if cnt == 0 || right_count[i + 1] == 0 {
-                    continue;
-                }
-                let cost = acc.area() * self.params.leaf_cost(cnt) + right_box[i + 1].area() * self.params.leaf_cost(right_count[i + 1]);
-                if best.as_ref().is_none_or(|b| cost < b.1) {
-                    best = Some((Split::Object { axis, bin: i, lo, k }, cost, acc, right_box[i + 1]));
-                }
+            if let Some((i, cost, l, r)) = self.sweep(&bin_bounds, &bin_count, &bin_count, usize::MAX)
+                && best.as_ref().is_none_or(|b| cost < b.1)
+            {
+                best = Some((Split::Object { axis, bin: i, lo, k }, cost, l, r));
             }
         }
         best
@@ -265,25 +250,47 @@ impl Ctx<'_> {
                 }
                 bin_bounds[b1] = bin_bounds[b1].union(&rest.bounds);
             }
-            let (mut right_box, mut right_count) = ([Aabb::EMPTY; SPATIAL_BINS], [0usize; SPATIAL_BINS]);
-            let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-            for i in (1..SPATIAL_BINS).rev() {
-                acc = acc.union(&bin_bounds[i]);
-                cnt += exit[i];
-                right_box[i] = acc;
-                right_count[i] = cnt;
+            if let Some((i, cost, _, _)) = self.sweep(&bin_bounds, &enter, &exit, refs.len() + budget)
+                && best.as_ref().is_none_or(|b| cost < b.1)
+            {
+                best = Some((Split::Spatial { axis, pos: plane(i + 1) }, cost));
             }
-            let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-            for i in 0..SPATIAL_BINS - 1 {
-                acc = acc.union(&bin_bounds[i]);
-                cnt += enter[i];
-                if cnt == 0 || right_count[i + 1] == 0 || cnt + right_count[i + 1] > refs.len() + budget {
-                    continue;
-                }
-                let cost = acc.area() * self.params.leaf_cost(cnt) + right_box[i + 1].area() * self.params.leaf_cost(right_count[i + 1]);
-                if best.as_ref().is_none_or(|b| cost < b.1) {
-                    best = Some((Split::Spatial { axis, pos: plane(i + 1) }, cost));
-                }
+        }
+        best
+    }
+
+    /// SAH sweep over binned boxes: for a split after bin i, the left side holds the
+    /// references entering bins ≤ i and the right those exiting bins > i (for an
+    /// object split both are the bin counts). Returns the best i with its cost and
+    /// the two sides' boxes, among splits with both sides non-empty and at most
+    /// `max_refs` references in all.
+    fn sweep<const B: usize>(
+        &self,
+        boxes: &[Aabb; B],
+        enter: &[usize; B],
+        exit: &[usize; B],
+        max_refs: usize,
+    ) -> Option<(usize, f32, Aabb, Aabb)> {
+        let (mut right_box, mut right_count) = ([Aabb::EMPTY; B], [0usize; B]);
+        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
+        for i in (1..B).rev() {
+            acc = acc.union(&boxes[i]);
+            cnt += exit[i];
+            right_box[i] = acc;
+            right_count[i] = cnt;
+        }
+        let mut best: Option<(usize, f32, Aabb, Aabb)> = None;
+        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
+        for i in 0..B - 1 {
+            acc = acc.union(&boxes[i]);
+            cnt += enter[i];
+            let rc = right_count[i + 1];
+            if cnt == 0 || rc == 0 || cnt + rc > max_refs {
+                continue;
+            }
+            let cost = acc.area() * self.params.leaf_cost(cnt) + right_box[i + 1].area() * self.params.leaf_cost(rc);
+            if best.as_ref().is_none_or(|b| cost < b.1) {
+                best = Some((i, cost, acc, right_box[i + 1]));
             }
         }
         best
