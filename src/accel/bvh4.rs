@@ -220,7 +220,8 @@ struct RayPre {
     /// Byte offsets in a node of the near (x, y, z) then far (x, y, z) plane arrays,
     /// chosen once per ray so the node test does no per-node selection.
     planes: [usize; 6],
-    /// The same for quantised nodes (byte arrays qlo[3][N] then qhi[3][N]).
+    /// The same for quantised nodes (byte arrays qlo[3][N] then qhi[3][N]; set
+    /// only for them).
     qplanes: [usize; 6],
     /// o·inv per axis, for the fused-multiply-subtract form of the AVX2 node test.
     oi: [f32; 3],
@@ -244,9 +245,7 @@ impl RayPre {
         let hi = |a: usize| (3 + a) * N * 4;
         let pick = |a: usize, near: bool| if neg[a] == near { hi(a) } else { lo(a) };
         let planes = [pick(0, true), pick(1, true), pick(2, true), pick(0, false), pick(1, false), pick(2, false)];
-        let qpick = |a: usize, near: bool| if neg[a] == near { (3 + a) * N } else { a * N };
-        let qplanes = [qpick(0, true), qpick(1, true), qpick(2, true), qpick(0, false), qpick(1, false), qpick(2, false)];
-        RayPre { o, inv, neg, planes, qplanes, oi, slack: 4.0 * f32::EPSILON * big }
+        RayPre { o, inv, neg, planes, qplanes: [0; 6], oi, slack: 4.0 * f32::EPSILON * big }
     }
 }
 
@@ -878,6 +877,8 @@ impl<const N: usize> WideBvh<N> {
     fn ray_pre<const Q: bool>(&self, ray: &Ray) -> RayPre {
         let mut r = RayPre::new::<N>(ray);
         if Q {
+            let qpick = |a: usize, near: bool| if r.neg[a] == near { (3 + a) * N } else { a * N };
+            r.qplanes = [qpick(0, true), qpick(1, true), qpick(2, true), qpick(0, false), qpick(1, false), qpick(2, false)];
             r.slack += QNode::<N>::slack(r.o, r.inv, self.cmax);
         }
         r

@@ -48,7 +48,7 @@ fn run_all(json: bool) -> Result<()> {
             inside,
             rays: 2_000_000,
             threads: 1,
-            accel: vec!["bvh".into(), "bvh4".into(), "bvh8".into()],
+            accel: vec!["bvh".into(), "bvh4".into(), "bvh8".into(), "bvh8q".into()],
             builds: 1,
             name: None,
             json,
