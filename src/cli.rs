@@ -75,7 +75,7 @@ pub struct RenderArgs {
     /// Sampler: random | halton | hammersley.
     #[arg(long)]
     pub sampler: Option<String>,
-    /// Accelerator: none | bvh | bvh4 | bvh8 (default bvh8).
+    /// Accelerator: none | bvh | bvh4 | bvh8 | bvh8q (default bvh8).
     #[arg(long)]
     pub accel: Option<String>,
     /// Russian roulette: off | fixed[:q] | albedo | throughput[:min_depth].
