@@ -14,7 +14,7 @@ pub struct RenderConfig {
     pub spp: u32,
     /// Sampler name (`random`, `halton`, `hammersley`).
     pub sampler: String,
-    /// Accelerator name (`none`, `bvh`, `bvh4`, `bvh8`).
+    /// Accelerator name (`none`, `bvh`, `bvh4`, `bvh8`, `bvh8q`).
     pub accel: String,
     /// Russian-roulette policy `NAME[:PARAM]` (`off`, `fixed:q`, `albedo`, `throughput:min_depth`).
     pub rr: String,
