@@ -10,8 +10,8 @@
 //! Node layout: child boxes as structure-of-arrays (`lo[axis][lane]`,
 //! `hi[axis][lane]`), so one node test checks all N boxes in a few vector
 //! instructions; the loops over lanes are written for LLVM's vectoriser and the whole
-//! traversal is compiled twice, once for AVX2 (chosen at run time) and once for the
-//! x86-64 baseline. Empty slots hold an inverted box, which no ray enters.
+//! traversal is compiled three times, for AVX-512 and for AVX2 (chosen at run time,
+//! [`Simd`]) and for the x86-64 baseline. Empty slots hold an inverted box, which no ray enters.
 //!
 //! Traversal: the near plane of each axis is chosen by the ray's direction sign once
 //! per ray; box distances use the robust slab test of Ize (2013), the far distance
@@ -324,18 +324,23 @@ impl RayPre {
 /// lying in the slab. Compiled as plain compare-and-select, each fold is one
 /// `minps`/`maxps`.
 #[inline(always)]
-fn node_test<const N: usize, const AVX: bool>(n: &Node<N>, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> u32 {
+fn node_test<const N: usize, const L: u8>(n: &Node<N>, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> u32 {
     #[cfg(target_arch = "x86_64")]
     {
         let base = n as *const Node<N> as *const u8;
         // In bounds: every offset addresses one of the node's six plane arrays.
         let planes = r.planes.map(|off| base.wrapping_add(off) as *const f32);
-        if N == 8 && AVX {
-            // SAFETY: AVX is true only inside the AVX2 traversal (CPU checked at build),
-            // and every plane array holds N = 8 floats, as does `tmin`.
+        if N == 8 && L == AVX512 {
+            // SAFETY: L is AVX512 only inside the AVX-512 traversal (CPU checked at
+            // build), and every plane array holds N = 8 floats, as does `tmin`.
             return unsafe { x86::node_test8(&planes, r, t_max, tmin.as_mut_ptr()) };
         }
-        if N == 4 && AVX {
+        if N == 8 && L == AVX2 {
+            // SAFETY: L is AVX2 only inside the AVX2 traversal (CPU checked at build),
+            // and every plane array holds N = 8 floats, as does `tmin`.
+            return unsafe { x86::node_test8_float(&planes, r, t_max, tmin.as_mut_ptr()) };
+        }
+        if N == 4 && L >= AVX2 {
             // SAFETY: as above, with N = 4.
             return unsafe { x86::node_test4_fma(&planes, r, t_max, tmin.as_mut_ptr()) };
         }
@@ -379,7 +384,7 @@ fn slab_lanes<const N: usize>(t: impl Fn(usize, usize) -> f32, t_max: f32, slack
 /// The distances may err by the ray's slack (which then includes
 /// [`QNode::slack`]) but never cull a box the ray crosses.
 #[inline(always)]
-fn qnode_test<const N: usize, const AVX: bool>(n: &QNode<N>, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> u32 {
+fn qnode_test<const N: usize, const L: u8>(n: &QNode<N>, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> u32 {
     let mut s = [0.0f32; 3];
     let mut b = [0.0f32; 3];
     for a in 0..3 {
@@ -388,9 +393,9 @@ fn qnode_test<const N: usize, const AVX: bool>(n: &QNode<N>, r: &RayPre, t_max: 
     }
     let base = n as *const QNode<N> as *const u8;
     #[cfg(target_arch = "x86_64")]
-    if N == 8 && AVX {
+    if N == 8 && L >= AVX2 {
         let planes = r.qplanes.map(|off| base.wrapping_add(off));
-        // SAFETY: AVX is true only inside the AVX2 traversal (CPU checked at build);
+        // SAFETY: L ≥ AVX2 only inside the AVX2 and AVX-512 traversals (CPU checked at build);
         // every plane pointer addresses 8 bytes of the node, `tmin` holds 8 floats.
         return unsafe { x86::qnode_test8(&planes, &s, &b, r, t_max, tmin.as_mut_ptr()) } & n.valid;
     }
@@ -407,6 +412,26 @@ mod x86 {
     use super::{FAR_WIDEN, ROBUST, RayPre};
     use std::arch::x86_64::*;
 
+    /// 8 lanes with AVX2/FMA, compared as floats (the AVX2 level: there the integer
+    /// form of [`node_test8`] measured 0.94–1.0×): t = plane·inv − o·inv in one
+    /// fused operation per plane, the far distance widened by [`ROBUST`] and the
+    /// ray's absolute `slack`. Safety: as [`node_test8`].
+    #[inline(always)]
+    pub(super) unsafe fn node_test8_float(planes: &[*const f32; 6], r: &RayPre, t_max: f32, tmin: *mut f32) -> u32 {
+        // SAFETY: the caller's guarantees (AVX2/FMA; 8 floats behind every pointer).
+        unsafe {
+            slabs8(
+                |k| {
+                    let a = k % 3;
+                    _mm256_fmsub_ps(_mm256_loadu_ps(planes[k]), _mm256_set1_ps(r.inv[a]), _mm256_set1_ps(r.oi[a]))
+                },
+                r,
+                t_max,
+                tmin,
+            )
+        }
+    }
+
     /// 8 lanes with AVX2/FMA: t = plane·c − b in one fused operation per plane
     /// (measured 1.1–1.3× faster traversal than subtract-then-multiply), with the
     /// widening folded into c and b ([`RayPre::fast_planes`]). The distances are
@@ -414,9 +439,11 @@ mod x86 {
     /// put every negative float below +0: the entry distance max(near, +0) and a
     /// negative far distance (box behind the origin) come out right, and the folds
     /// form trees of integer min/max (shorter than the float test's chain, and
-    /// compiled with AVX-512 into a mask-register compare). An empty lane (box
-    /// +∞…−∞) gets entry +∞ and exit −∞ from any axis with a finite coefficient
-    /// (0·∞ = NaN on the others), so it is never entered. Safety: the CPU must
+    /// compiled with AVX-512 into a mask-register compare; this is the AVX-512 level's
+    /// test). An empty lane (box +∞…−∞) gets entry +∞ and exit −∞ from any axis with
+    /// a non-zero coefficient; a parallel axis (coefficient 0) gives 0·∞ = NaN, which
+    /// the integer folds never prefer to those, and if all three are parallel, NaN
+    /// entry and exit still fail the comparison, so it is never entered. Safety: the CPU must
     /// support AVX2 and FMA; `planes` (near x, y, z, far x, y, z) and `tmin` must
     /// point to 8 floats each.
     #[inline(always)]
@@ -720,12 +747,12 @@ impl<const N: usize> WideBvh<N> {
     }
 
     #[inline(always)]
-    fn intersect_impl<const AVX: bool, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+    fn intersect_impl<const L: u8, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
         stats.rays += 1;
         if self.nodes.is_empty() && self.qnodes.is_empty() {
             return None;
         }
-        let r = self.ray_pre::<Q>(ray);
+        let r = self.ray_pre::<L, Q>(ray);
         let (o, d) = (ray.o, ray.d);
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
@@ -736,7 +763,7 @@ impl<const N: usize> WideBvh<N> {
         let (mut node_tests, mut tri_tests) = (0u64, 0u64);
         loop {
             if cur & LEAF == 0 {
-                let (mut mask, child) = self.visit::<AVX, Q>(cur, &r, t_best, &mut tmin);
+                let (mut mask, child) = self.visit::<L, Q>(cur, &r, t_best, &mut tmin);
                 node_tests += N as u64;
                 if mask != 0 {
                     let i = mask.trailing_zeros() as usize;
@@ -817,12 +844,12 @@ impl<const N: usize> WideBvh<N> {
     }
 
     #[inline(always)]
-    fn occluded_impl<const AVX: bool, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
+    fn occluded_impl<const L: u8, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
         stats.shadow_rays += 1;
         if self.nodes.is_empty() && self.qnodes.is_empty() {
             return false;
         }
-        let r = self.ray_pre::<Q>(ray);
+        let r = self.ray_pre::<L, Q>(ray);
         let (o, d) = (ray.o, ray.d);
         let mut stack = Stack::<STACK>::new();
         let mut cur = 0u32;
@@ -831,7 +858,7 @@ impl<const N: usize> WideBvh<N> {
         let (mut node_tests, mut tri_tests) = (0u64, 0u64);
         loop {
             if cur & LEAF == 0 {
-                let (mut mask, child) = self.visit::<AVX, Q>(cur, &r, t_max, &mut tmin);
+                let (mut mask, child) = self.visit::<L, Q>(cur, &r, t_max, &mut tmin);
                 node_tests += N as u64;
                 if mask != 0 {
                     // Any order finds an occluder; go down the first, stack the others.
@@ -933,13 +960,13 @@ impl<const N: usize> WideBvh<N> {
 
     /// Per-ray values; with quantised nodes the slack also covers their rounding.
     #[inline(always)]
-    fn ray_pre<const Q: bool>(&self, ray: &Ray) -> RayPre {
+    fn ray_pre<const L: u8, const Q: bool>(&self, ray: &Ray) -> RayPre {
         let mut r = RayPre::new::<N>(ray);
         if Q {
             let qpick = |a: usize, near: bool| if r.neg[a] == near { (3 + a) * N } else { a * N };
             r.qplanes = [qpick(0, true), qpick(1, true), qpick(2, true), qpick(0, false), qpick(1, false), qpick(2, false)];
             r.slack += QNode::<N>::slack(r.o, r.inv, self.cmax);
-        } else {
+        } else if L == AVX512 {
             r.fast_planes(self.cmax);
         }
         r
@@ -948,15 +975,15 @@ impl<const N: usize> WideBvh<N> {
     /// Tests the ray against the children of interior node `cur`: the hit mask
     /// (entry distances in `tmin`) and the child references.
     #[inline(always)]
-    fn visit<const AVX: bool, const Q: bool>(&self, cur: u32, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> (u32, &[u32; N]) {
+    fn visit<const L: u8, const Q: bool>(&self, cur: u32, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> (u32, &[u32; N]) {
         if Q {
             debug_assert!((cur as usize) < self.qnodes.len());
             // SAFETY: as in `node`, for the quantised copy of the node array.
             let q = unsafe { self.qnodes.get_unchecked(cur as usize) };
-            (qnode_test::<N, AVX>(q, r, t_max, tmin), &q.child)
+            (qnode_test::<N, L>(q, r, t_max, tmin), &q.child)
         } else {
             let n = self.node(cur);
-            (node_test::<N, AVX>(n, r, t_max, tmin), &n.child)
+            (node_test::<N, L>(n, r, t_max, tmin), &n.child)
         }
     }
 
@@ -996,32 +1023,36 @@ impl<const N: usize> WideBvh<N> {
     #[target_feature(enable = "avx2,fma")]
     fn intersect_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
         if self.quant {
-            self.intersect_impl::<true, true>(ray, t_max, stats)
+            self.intersect_impl::<AVX2, true>(ray, t_max, stats)
         } else {
-            self.intersect_impl::<true, false>(ray, t_max, stats)
+            self.intersect_impl::<AVX2, false>(ray, t_max, stats)
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn occluded_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
-        if self.quant { self.occluded_impl::<true, true>(ray, t_max, stats) } else { self.occluded_impl::<true, false>(ray, t_max, stats) }
+        if self.quant { self.occluded_impl::<AVX2, true>(ray, t_max, stats) } else { self.occluded_impl::<AVX2, false>(ray, t_max, stats) }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
     fn intersect_avx512(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
         if self.quant {
-            self.intersect_impl::<true, true>(ray, t_max, stats)
+            self.intersect_impl::<AVX512, true>(ray, t_max, stats)
         } else {
-            self.intersect_impl::<true, false>(ray, t_max, stats)
+            self.intersect_impl::<AVX512, false>(ray, t_max, stats)
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
     fn occluded_avx512(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
-        if self.quant { self.occluded_impl::<true, true>(ray, t_max, stats) } else { self.occluded_impl::<true, false>(ray, t_max, stats) }
+        if self.quant {
+            self.occluded_impl::<AVX512, true>(ray, t_max, stats)
+        } else {
+            self.occluded_impl::<AVX512, false>(ray, t_max, stats)
+        }
     }
 }
 
@@ -1050,9 +1081,10 @@ fn huge_vec<T>(cap: usize) -> Vec<T> {
     v
 }
 
-/// Instruction set of the traversal. The source is the same for the two x86 levels;
-/// compiled for AVX-512 (VL), LLVM turns the node test's comparisons into mask
-/// registers, which measured 1.03–1.05× faster on this Zen 5 (see README).
+/// Instruction set of the traversal. The AVX-512 level runs the integer-compare
+/// node test (`x86::node_test8`), whose comparisons LLVM compiles to mask
+/// registers (1.03–1.05× faster than the AVX2 level on this Zen 5, see README); the
+/// AVX2 level keeps the float test, as the integer form measured 0.94–1.0× there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Simd {
     /// Lane loops only (no x86 extensions assumed).
@@ -1062,6 +1094,11 @@ pub(crate) enum Simd {
     /// AVX2, FMA and AVX-512 F/VL/BW/DQ.
     Avx512,
 }
+
+/// [`Simd`] levels as const-generic parameters of the traversal.
+const PORTABLE: u8 = 0;
+const AVX2: u8 = 1;
+const AVX512: u8 = 2;
 
 /// The best traversal level this CPU supports.
 pub(crate) fn detect_simd() -> Simd {
@@ -1097,9 +1134,9 @@ impl<const N: usize> Accel for WideBvh<N> {
             Simd::Portable => {}
         }
         if self.quant {
-            self.intersect_impl::<false, true>(ray, t_max, stats)
+            self.intersect_impl::<PORTABLE, true>(ray, t_max, stats)
         } else {
-            self.intersect_impl::<false, false>(ray, t_max, stats)
+            self.intersect_impl::<PORTABLE, false>(ray, t_max, stats)
         }
     }
 
@@ -1113,9 +1150,9 @@ impl<const N: usize> Accel for WideBvh<N> {
             Simd::Portable => {}
         }
         if self.quant {
-            self.occluded_impl::<false, true>(ray, t_max, stats)
+            self.occluded_impl::<PORTABLE, true>(ray, t_max, stats)
         } else {
-            self.occluded_impl::<false, false>(ray, t_max, stats)
+            self.occluded_impl::<PORTABLE, false>(ray, t_max, stats)
         }
     }
 
@@ -1309,7 +1346,7 @@ mod tests {
             let mut d = [0.0f32; 3];
             for a in 0..3 {
                 o[a] = if k % 3 == 0 { grid(unit(k, 100 + a as u64)) } else { unit(k, 100 + a as u64) * 6.0 - 3.0 };
-                // A third of the rays have one or two zero direction components.
+                // About a quarter of the rays have one or two zero direction components.
                 let zero = (k % 7 == 1 && a == (k % 3) as usize) || (k % 11 == 2 && a != (k % 3) as usize);
                 d[a] = if zero { 0.0 } else { unit(k, 200 + a as u64) * 2.0 - 1.0 };
             }
