@@ -677,6 +677,33 @@ fn collapse<const N: usize>(node: &BuildNode, out: &mut Collapse<N>, depth: usiz
     at as u32
 }
 
+/// The closest-hit and any-hit entry points of one traversal level, compiled with
+/// that level's target features (the `#[inline(always)]` traversal is compiled
+/// into each).
+macro_rules! simd_entries {
+    ($intersect:ident, $occluded:ident, $level:ident, $features:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $intersect(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+            if self.quant {
+                self.intersect_impl::<$level, true>(ray, t_max, stats)
+            } else {
+                self.intersect_impl::<$level, false>(ray, t_max, stats)
+            }
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $occluded(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
+            if self.quant {
+                self.occluded_impl::<$level, true>(ray, t_max, stats)
+            } else {
+                self.occluded_impl::<$level, false>(ray, t_max, stats)
+            }
+        }
+    };
+}
+
 impl<const N: usize> WideBvh<N> {
     /// Builds the hierarchy over `tris`.
     pub fn build(tris: &[[Vec3; 3]]) -> Self {
@@ -1019,41 +1046,8 @@ impl<const N: usize> WideBvh<N> {
         }
     }
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn intersect_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
-        if self.quant {
-            self.intersect_impl::<AVX2, true>(ray, t_max, stats)
-        } else {
-            self.intersect_impl::<AVX2, false>(ray, t_max, stats)
-        }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn occluded_avx2(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
-        if self.quant { self.occluded_impl::<AVX2, true>(ray, t_max, stats) } else { self.occluded_impl::<AVX2, false>(ray, t_max, stats) }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
-    fn intersect_avx512(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
-        if self.quant {
-            self.intersect_impl::<AVX512, true>(ray, t_max, stats)
-        } else {
-            self.intersect_impl::<AVX512, false>(ray, t_max, stats)
-        }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
-    fn occluded_avx512(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
-        if self.quant {
-            self.occluded_impl::<AVX512, true>(ray, t_max, stats)
-        } else {
-            self.occluded_impl::<AVX512, false>(ray, t_max, stats)
-        }
-    }
+    simd_entries!(intersect_avx2, occluded_avx2, AVX2, "avx2,fma");
+    simd_entries!(intersect_avx512, occluded_avx512, AVX512, "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq");
 }
 
 /// An empty vector with room for `cap` items whose pages the kernel is asked to back
