@@ -801,14 +801,17 @@ impl<const N: usize> WideBvh<N> {
                     }
                     let j = mask.trailing_zeros() as usize;
                     if mask & (mask - 1) == 0 {
-                        // Two (the common case): no sort.
+                        // Two (the common case): no sort. Both are prefetched before the
+                        // comparison (which waits for the entry distances the node test
+                        // stored), so that the nearer one's lines are already on their way.
+                        self.prefetch::<Q>(child[i]);
+                        self.prefetch::<Q>(child[j]);
                         let (near, far) = if tmin[j] < tmin[i] { (j, i) } else { (i, j) };
-                        self.prefetch::<Q>(child[far]);
                         stack.push((child[far], tmin[far]));
                         cur = child[near];
                         continue;
                     }
-                    // Two or more: visit the nearest now, stack the rest farthest first.
+                    // Three or more: visit the nearest now, stack the rest farthest first.
                     let mut hits: [(u32, f32); N] = [(0, 0.0); N];
                     hits[0] = (child[i], tmin[i]);
                     let mut k = 1;
