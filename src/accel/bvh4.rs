@@ -1,6 +1,6 @@
 //! `bvh4` and `bvh8`: wide bounding volume hierarchies (4 or 8 children per node).
 //!
-//! Build: the binary spatial-split SAH tree of [`super::sbvh`] (leaves of up to
+//! Build: the binary spatial-split SAH tree of `sbvh` (leaves of up to
 //! [`MAX_LEAF`] triangle references), collapsed top-down: a node adopts its two
 //! children, then repeatedly replaces the interior child with the largest surface
 //! area by that child's two children until it has N (Wald et al. 2008); a subtree
@@ -11,7 +11,7 @@
 //! `hi[axis][lane]`), so one node test checks all N boxes in a few vector
 //! instructions; the loops over lanes are written for LLVM's vectoriser and the whole
 //! traversal is compiled three times, for AVX-512 and for AVX2 (chosen at run time,
-//! [`Simd`]) and for the x86-64 baseline. Empty slots hold an inverted box, which no ray enters.
+//! `Simd`) and for the x86-64 baseline. Empty slots hold an inverted box, which no ray enters.
 //!
 //! Traversal: the near plane of each axis is chosen by the ray's direction sign once
 //! per ray; box distances use the robust slab test of Ize (2013), the far distance

@@ -6,7 +6,7 @@
 //! node array half the memory: more of the tree stays in the L2 cache. The ray's
 //! plane distances are (origin − o)/d + q·(scale/d), one fused multiply-add per
 //! plane after the byte-to-float conversion; the extra rounding of (origin − o) is
-//! covered by a per-ray absolute slack (see [`QNode::slack`]), so no box a ray
+//! covered by a per-ray absolute slack (see `QNode::slack`), so no box a ray
 //! crosses is ever culled. Leaves and the triangle test are those of `bvh8`, so
 //! hits are bit-identical.
 
