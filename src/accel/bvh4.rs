@@ -1083,6 +1083,7 @@ fn huge_vec<T>(cap: usize) -> Vec<T> {
 /// registers (1.03–1.05× faster than the AVX2 level on this Zen 5, see README); the
 /// AVX2 level keeps the float test, as the integer form measured 0.94–1.0× there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
 pub(crate) enum Simd {
     /// Lane loops only (no x86 extensions assumed).
     Portable,
@@ -1093,9 +1094,9 @@ pub(crate) enum Simd {
 }
 
 /// [`Simd`] levels as const-generic parameters of the traversal.
-const PORTABLE: u8 = 0;
-const AVX2: u8 = 1;
-const AVX512: u8 = 2;
+const PORTABLE: u8 = Simd::Portable as u8;
+const AVX2: u8 = Simd::Avx2 as u8;
+const AVX512: u8 = Simd::Avx512 as u8;
 
 /// The best traversal level this CPU supports.
 pub(crate) fn detect_simd() -> Simd {
