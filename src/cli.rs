@@ -228,7 +228,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Scene(SceneCommand::Export { name, dir }) => {
             let scene = builtin(&name)?;
             let toml = export_scene(&scene, &dir)?;
-            println!("wrote {}", toml.display());
+            outln!("wrote {}", toml.display());
             Ok(())
         }
         Command::Bench(b) => crate::bench::run(b),
@@ -250,8 +250,8 @@ pub fn run(cli: Cli) -> Result<()> {
                 }
             }
             let n = (a.pixels.len() * 3) as f64;
-            println!("mean test {:?} reference {:?}", a.mean().to_array(), b.mean().to_array());
-            println!("rmse {:.6} relmse {:.6}", (se / n).sqrt(), rel / n);
+            outln!("mean test {:?} reference {:?}", a.mean().to_array(), b.mean().to_array());
+            outln!("rmse {:.6} relmse {:.6}", (se / n).sqrt(), rel / n);
             if let Some(o) = out {
                 let mut d = a.clone();
                 for (p, q) in d.pixels.iter_mut().zip(&b.pixels) {
@@ -279,15 +279,25 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
     let o = render_scene_with_aovs(scene, &cfg, a.quiet, &a.aov)?;
     let (exr, png) = o.film.write_pair(&out).context("writing the image")?;
     let rays = o.rays();
-    println!(
+    outln!(
         "scene {name}: {ntris} triangles, {}x{} px, {} spp, integrator {}, sampler {}, accel {}, rr {}, {} threads",
-        o.film.width, o.film.height, cfg.spp, cfg.integrator, cfg.sampler, cfg.accel, cfg.rr, o.threads
+        o.film.width,
+        o.film.height,
+        cfg.spp,
+        cfg.integrator,
+        cfg.sampler,
+        cfg.accel,
+        cfg.rr,
+        o.threads
     );
-    println!(
+    outln!(
         "time: load {:.3} s, accel build {:.3} s, preprocess {:.3} s, render {:.3} s",
-        load_s, o.timings.accel_build_s, o.timings.preprocess_s, o.timings.render_s
+        load_s,
+        o.timings.accel_build_s,
+        o.timings.preprocess_s,
+        o.timings.render_s
     );
-    println!(
+    outln!(
         "rays: {} ({} closest-hit, {} shadow), {:.2} Mrays/s",
         rays.total_rays(),
         rays.rays,
@@ -296,18 +306,18 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
     );
     if !o.extra.is_empty() {
         let parts: Vec<String> = o.extra.iter().map(|(k, v)| format!("{k} {}", fmt_num(*v))).collect();
-        println!("{}: {}", cfg.integrator, parts.join(", "));
+        outln!("{}: {}", cfg.integrator, parts.join(", "));
     }
     for (name, img) in &o.aovs {
         let stem = out.with_extension("");
         let p = PathBuf::from(format!("{}.{name}.exr", stem.display()));
         let (e, g) = img.write_pair(&p).with_context(|| format!("writing aov {name}"))?;
-        println!("wrote {} and {}", e.display(), g.display());
+        outln!("wrote {} and {}", e.display(), g.display());
     }
     if o.stats.nonfinite_samples > 0 {
         eprintln!("warning: {} sample(s) were NaN or infinite and were dropped", o.stats.nonfinite_samples);
     }
-    println!("wrote {} and {}", exr.display(), png.display());
+    outln!("wrote {} and {}", exr.display(), png.display());
     Ok(())
 }
 

@@ -2,6 +2,24 @@
 //! photon mapping, with every strategy (sampler, accelerator, Russian roulette,
 //! integrator) a plug-in chosen by name. See ARCHITECTURE.md for the data flow.
 
+/// `print!` to stdout that never panics: once stdout is closed (`photonlab … | head`)
+/// the rest of the output is dropped and the work goes on, so files the command
+/// writes are not lost, where `print!` would panic mid-run.
+macro_rules! out {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($t)*);
+    }};
+}
+
+/// `println!` that never panics (see `out!`).
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
 pub mod accel;
 pub mod bench;
 pub mod camera;

@@ -74,3 +74,26 @@ fn bench_accel_prints_harness_fields() {
     assert!(!ok && err.contains("missing.obj"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Output into a closed pipe (`photonlab … | head`) is dropped, not a panic: the
+/// command finishes and exits 0 (`println!` would abort it with exit code 101).
+#[test]
+fn closed_stdout_is_not_a_panic() {
+    use std::process::Stdio;
+    let dir = std::env::temp_dir().join(format!("photonlab-bench-pipe-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("box.obj");
+    std::fs::write(&obj, BOX_OBJ).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_photonlab"))
+        .args(["bench", "accel", "--obj", obj.to_str().unwrap(), "--rays", "100", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("running photonlab");
+    // Close the read end before the first line is written.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !err.contains("panicked"), "{:?}: {err}", out.status);
+    std::fs::remove_dir_all(&dir).ok();
+}

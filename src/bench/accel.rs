@@ -539,12 +539,23 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
 
 /// Prints rows as an aligned table.
 pub fn print_table(rows: &[BenchRow]) {
-    println!(
+    outln!(
         "{:<24} {:<18} {:<8} {:>3} {:>9} {:>9} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
-        "scene", "engine", "rays", "thr", "Mrays/s", "cpu Mr/s", "hit", "n_rays", "nodes/r", "tris/r", "build_s", "MB"
+        "scene",
+        "engine",
+        "rays",
+        "thr",
+        "Mrays/s",
+        "cpu Mr/s",
+        "hit",
+        "n_rays",
+        "nodes/r",
+        "tris/r",
+        "build_s",
+        "MB"
     );
     for r in rows {
-        println!(
+        outln!(
             "{:<24} {:<18} {:<8} {:>3} {:>9.3} {:>9.3} {:>8.4} {:>9} {:>8.1} {:>8.2} {:>8.3} {:>7.1}",
             r.scene,
             r.engine,
@@ -578,7 +589,7 @@ pub fn run(a: &AccelArgs) -> Result<()> {
     let rows = run_mesh(&mesh, &a.accel, a.rays, a.inside, a.threads, a.builds)?;
     if a.json {
         for r in &rows {
-            println!("{}", serde_json::to_string(r)?);
+            outln!("{}", serde_json::to_string(r)?);
         }
     } else {
         print_table(&rows);

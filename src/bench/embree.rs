@@ -185,7 +185,7 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
                 let new = pair_rows(&emb, &ours);
                 for r in &new {
                     if a.json {
-                        println!("{}", serde_json::to_string(r)?);
+                        outln!("{}", serde_json::to_string(r)?);
                     } else {
                         print_row(r);
                     }
@@ -244,15 +244,23 @@ fn pair_rows(emb: &[serde_json::Value], ours: &[BenchRow]) -> Vec<CompareRow> {
 }
 
 fn print_header() {
-    println!(
+    outln!(
         "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13} | {:>16} | {:>6} | {:>9} | {:>9} |",
-        "scene", "rays", "thr", "engine", "Embree Mrays/s", "photonlab Mrays/s", "ratio", "hit (E)", "hit (p)"
+        "scene",
+        "rays",
+        "thr",
+        "engine",
+        "Embree Mrays/s",
+        "photonlab Mrays/s",
+        "ratio",
+        "hit (E)",
+        "hit (p)"
     );
-    println!("|---|---|---:|---|---:|---:|---:|---:|---:|");
+    outln!("|---|---|---:|---|---:|---:|---:|---:|---:|");
 }
 
 fn print_row(r: &CompareRow) {
-    println!(
+    outln!(
         "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13.2} | {:>16.2} | {:>6.2} | {:>9.4} | {:>9.4} |",
         r.scene,
         r.rays,

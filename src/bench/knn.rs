@@ -342,20 +342,20 @@ mod imp {
     fn print_rows(rows: &[Row], json: bool) -> Result<()> {
         if json {
             for r in rows {
-                println!("{}", serde_json::to_string(r)?);
+                outln!("{}", serde_json::to_string(r)?);
             }
             return Ok(());
         }
         if let Some(r) = rows.first() {
-            println!(
+            outln!(
                 "bench knn: {} points, {} queries; times in ms (build) or ns/query (wall time / queries); ratio = own / kiddo; load average {}",
                 r.n,
                 rows.iter().map(|r| r.queries).max().unwrap_or(0),
                 r.load_average.map_or("unknown".into(), |l| format!("{l:.1}"))
             );
         }
-        println!("| dist | op | threads | own | kiddo | ratio | own B/pt | kiddo B/pt | same |");
-        println!("|---|---|---|---|---|---|---|---|---|");
+        outln!("| dist | op | threads | own | kiddo | ratio | own B/pt | kiddo B/pt | same |");
+        outln!("|---|---|---|---|---|---|---|---|---|");
         for r in rows {
             let (a, b) = match (r.own_ns_per_query, r.kiddo_ns_per_query) {
                 (Some(a), Some(b)) => (format!("{a:.0} ns"), format!("{b:.0} ns")),
@@ -366,9 +366,14 @@ mod imp {
                 Some(0) => "yes".to_string(),
                 Some(m) => format!("NO ({m})"),
             };
-            println!(
+            outln!(
                 "| {} | {} | {} | {a} | {b} | {:.2} | {:.1} | {:.1} | {same} |",
-                r.dist, r.op, r.threads, r.ratio, r.own_bytes_per_point, r.kiddo_bytes_per_point
+                r.dist,
+                r.op,
+                r.threads,
+                r.ratio,
+                r.own_bytes_per_point,
+                r.kiddo_bytes_per_point
             );
         }
         Ok(())

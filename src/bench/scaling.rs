@@ -114,10 +114,10 @@ pub fn run(args: &ScalingArgs) -> Result<()> {
         .collect();
     if args.json {
         for r in &rows {
-            println!("{}", serde_json::to_string(r)?);
+            outln!("{}", serde_json::to_string(r)?);
         }
     } else {
-        println!(
+        outln!(
             "bench scaling: {}, {} global + {} caustic photons, irradiance cache, {}x{} px, {} spp; best of {} runs; {} cores, load average {}",
             args.scene,
             args.photons,
@@ -129,10 +129,10 @@ pub fn run(args: &ScalingArgs) -> Result<()> {
             rows[0].cores,
             rows[0].load_average.map_or("unknown".into(), |l| format!("{l:.1}"))
         );
-        println!("| phase | 1 thread | 2 threads | speed-up |");
-        println!("|---|---|---|---|");
+        outln!("| phase | 1 thread | 2 threads | speed-up |");
+        outln!("|---|---|---|---|");
         for r in &rows {
-            println!("| {} | {:.3} s | {:.3} s | {:.2}x |", r.phase, r.t1_s, r.t2_s, r.speedup);
+            outln!("| {} | {:.3} s | {:.3} s | {:.2}x |", r.phase, r.t1_s, r.t2_s, r.speedup);
         }
     }
     Ok(())

@@ -372,10 +372,10 @@ fn list_cells(m: &Manifest, out: &Path, shard: Option<Shard>) -> Result<()> {
     let mut n = 0;
     for c in m.cells.iter().filter(|c| shard.is_none_or(|s| s.takes(c.index))) {
         let done = info.as_ref().and_then(|i| i.references.get(c.scene)).is_some_and(|r| finished(out, c, &r.key).is_some());
-        println!("{:>5}  {}  {}", c.index, if done { "finished" } else { "to run  " }, c.stem);
+        outln!("{:>5}  {}  {}", c.index, if done { "finished" } else { "to run  " }, c.stem);
         n += 1;
     }
-    println!(
+    outln!(
         "{}: {n} of {} cells listed ({} configurations × {} repeats), output {}",
         m.path.display(),
         m.cells.len(),
@@ -455,7 +455,7 @@ pub fn run_cmd(args: &RunArgs) -> Result<()> {
     if args.list {
         return Ok(());
     }
-    println!(
+    outln!(
         "{}: ran {} cell(s), kept {} finished{}",
         r.dir.display(),
         r.ran,

@@ -195,12 +195,12 @@ pub fn run(args: &StatsArgs) -> Result<Vec<TestRow>> {
         let (png, _) = line_plot(&args.out.join(stem), p)?;
         written.push(png);
     }
-    print!("{}", table(&rows));
+    out!("{}", table(&rows));
     let bad = rows.iter().filter(|r| !r.as_expected()).count();
-    println!("{} tests, {} as expected, {} not; {:.1} s", rows.len(), rows.len() - bad, bad, seconds);
-    println!("wrote {} and {}", args.out.join("stats.csv").display(), args.out.join("stats.md").display());
+    outln!("{} tests, {} as expected, {} not; {:.1} s", rows.len(), rows.len() - bad, bad, seconds);
+    outln!("wrote {} and {}", args.out.join("stats.csv").display(), args.out.join("stats.md").display());
     for p in written {
-        println!("wrote {} (+ .svg)", p.display());
+        outln!("wrote {} (+ .svg)", p.display());
     }
     Ok(rows)
 }
