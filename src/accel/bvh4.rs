@@ -469,6 +469,57 @@ mod x86 {
         }
     }
 
+    /// Orders the hit children of a node with three or more hits, without branches:
+    /// the nearest child is returned (a minimum over keys distance | lane), and all
+    /// hit children go to `out` farthest first (a bitonic network over the same keys,
+    /// non-hit lanes last), so the caller counts the first popcount − 1 of them as
+    /// pushed. Stored distances have their 3 low bits cleared (at most 7 ulps
+    /// smaller, which only ever keeps an entry on pop). Safety: AVX2 and AVX-512
+    /// F/VL; `tmin` (non-negative distances, as `node_test8` leaves them) and `child`
+    /// must point to 8 values.
+    #[inline(always)]
+    pub(super) unsafe fn sort_hits8(
+        tmin: *const f32,
+        mask: u32,
+        child: *const u32,
+        out: &mut [std::mem::MaybeUninit<super::Entry>; 8],
+    ) -> u32 {
+        // SAFETY: the caller's guarantees; `out` holds 8 entries of 8 bytes.
+        unsafe {
+            let k = mask as __mmask8;
+            let t = _mm256_loadu_si256(tmin as *const __m256i);
+            let key = _mm256_or_si256(_mm256_and_si256(t, _mm256_set1_epi32(!7)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+            let m = _mm256_mask_blend_epi32(k, _mm256_set1_epi32(i32::MAX), key);
+            let m = _mm256_min_epi32(m, _mm256_permute4x64_epi64::<0x4E>(m));
+            let m = _mm256_min_epi32(m, _mm256_shuffle_epi32::<0x4E>(m));
+            let m = _mm256_min_epi32(m, _mm256_shuffle_epi32::<0xB1>(m));
+            let nearest = *child.add((_mm256_cvtsi256_si32(m) & 7) as usize);
+            // Bitonic sort, descending: per layer, each lane meets its partner and
+            // keeps the larger key where the mask bit is set.
+            let mut v = _mm256_mask_blend_epi32(k, _mm256_set1_epi32(-1), key);
+            macro_rules! layer {
+                ($partner:expr, $max:expr) => {
+                    let p = $partner;
+                    v = _mm256_mask_blend_epi32($max, _mm256_min_epi32(v, p), _mm256_max_epi32(v, p));
+                };
+            }
+            layer!(_mm256_shuffle_epi32::<0xB1>(v), 0x99);
+            layer!(_mm256_shuffle_epi32::<0x4E>(v), 0xc3);
+            layer!(_mm256_shuffle_epi32::<0xB1>(v), 0xa5);
+            layer!(_mm256_permute4x64_epi64::<0x4E>(v), 0x0f);
+            layer!(_mm256_shuffle_epi32::<0x4E>(v), 0x33);
+            layer!(_mm256_shuffle_epi32::<0xB1>(v), 0x55);
+            let cs = _mm256_permutevar8x32_epi32(_mm256_loadu_si256(child as *const __m256i), _mm256_and_si256(v, _mm256_set1_epi32(7)));
+            let ts = _mm256_and_si256(v, _mm256_set1_epi32(!7));
+            let lo = _mm256_unpacklo_epi32(cs, ts);
+            let hi = _mm256_unpackhi_epi32(cs, ts);
+            let p = out.as_mut_ptr() as *mut __m256i;
+            _mm256_storeu_si256(p, _mm256_permute2x128_si256::<0x20>(lo, hi));
+            _mm256_storeu_si256(p.add(1), _mm256_permute2x128_si256::<0x31>(lo, hi));
+            nearest
+        }
+    }
+
     /// 8 quantised lanes with AVX2/FMA: bytes widened to floats, then one fused
     /// multiply-add per plane. Safety: the CPU must support AVX2 and FMA; `planes`
     /// must point to 8 bytes each and `tmin` to 8 floats.
@@ -554,8 +605,16 @@ mod x86 {
 /// Traversal stack of (child reference, entry distance); never read beyond what was
 /// pushed.
 struct Stack<const C: usize> {
-    items: [MaybeUninit<(u32, f32)>; C],
+    items: [MaybeUninit<Entry>; C],
     len: usize,
+}
+
+/// A stack entry, laid out for vector stores (`x86::sort_hits8`).
+#[derive(Clone, Copy)]
+#[repr(C)]
+struct Entry {
+    child: u32,
+    t: f32,
 }
 
 impl<const C: usize> Stack<C> {
@@ -566,7 +625,7 @@ impl<const C: usize> Stack<C> {
     #[inline(always)]
     fn push(&mut self, v: (u32, f32)) {
         // Bounds-checked: the build bounds the depth, so this never fails.
-        self.items[self.len].write(v);
+        self.items[self.len].write(Entry { child: v.0, t: v.1 });
         self.len += 1;
     }
     #[inline(always)]
@@ -575,8 +634,21 @@ impl<const C: usize> Stack<C> {
             return None;
         }
         self.len -= 1;
-        // SAFETY: every index below `len` was written by `push` before.
-        Some(unsafe { self.items[self.len].assume_init() })
+        // SAFETY: every index below `len` was written by `push` or `top8` before.
+        let e = unsafe { self.items[self.len].assume_init() };
+        Some((e.child, e.t))
+    }
+    /// The next 8 slots, for a vector store of which the caller then counts `n`
+    /// (≤ 8) entries with `grow`.
+    #[inline(always)]
+    fn top8(&mut self) -> &mut [MaybeUninit<Entry>; 8] {
+        // Bounds-checked: the build bounds the depth (7 per level + 8), so this never fails.
+        (&mut self.items[self.len..self.len + 8]).try_into().unwrap()
+    }
+    #[inline(always)]
+    fn grow(&mut self, n: usize) {
+        debug_assert!(self.len + n <= C);
+        self.len += n;
     }
 }
 
@@ -895,6 +967,21 @@ impl<const N: usize> WideBvh<N> {
                         continue;
                     }
                     // Three or more: visit the nearest now, stack the rest farthest first.
+                    #[cfg(target_arch = "x86_64")]
+                    if N == 8 && L == AVX512 && !Q {
+                        let full = mask | 1 << i;
+                        // SAFETY: L is AVX512 only inside the AVX-512 traversal (CPU checked
+                        // at build); `tmin` and `child` hold 8 values, the node test left
+                        // non-negative distances in `tmin`.
+                        cur = unsafe { x86::sort_hits8(tmin.as_ptr(), full, child.as_ptr(), stack.top8()) };
+                        stack.grow(full.count_ones() as usize - 1);
+                        let mut m = mask;
+                        while m != 0 {
+                            self.prefetch::<Q>(child[m.trailing_zeros() as usize]);
+                            m &= m - 1;
+                        }
+                        continue;
+                    }
                     let mut hits: [(u32, f32); N] = [(0, 0.0); N];
                     hits[0] = (child[i], tmin[i]);
                     let mut k = 1;
@@ -1596,6 +1683,51 @@ mod tests {
             partial |= dp.iter().any(|e| e.right != 0 && e.cost[3] == e.cost[2]);
         }
         assert!(merged && partial);
+    }
+
+    /// The branch-free ordering of three or more hit children: the nearest is
+    /// returned, the others come farthest first, none is lost or invented.
+    #[test]
+    fn sorted_push_of_many_hits() {
+        if detect_simd() != Simd::Avx512 {
+            eprintln!("no AVX-512 on this CPU: the sorted push is not used, nothing to check");
+            return;
+        }
+        let mut seed = 11u64;
+        let mut checked = 0;
+        for _ in 0..20_000 {
+            let mask = (rnd(&mut seed) * 256.0) as u32 & 0xff;
+            if mask.count_ones() < 3 {
+                continue;
+            }
+            // Distances with ties and zeros; child references arbitrary.
+            let tmin: [f32; 8] =
+                std::array::from_fn(
+                    |_| if rnd(&mut seed) < 0.2 { 0.0 } else { (rnd(&mut seed) * 8.0).floor() * 0.5 + rnd(&mut seed) * 1e-6 },
+                );
+            let child: [u32; 8] = std::array::from_fn(|i| 1000 + i as u32 * 7);
+            let mut out = [const { MaybeUninit::uninit() }; 8];
+            // SAFETY: AVX-512 checked above; 8 non-negative distances and children.
+            let near = unsafe { x86::sort_hits8(tmin.as_ptr(), mask, child.as_ptr(), &mut out) };
+            let k = mask.count_ones() as usize;
+            // SAFETY: the function wrote all 8 entries.
+            let got: Vec<Entry> = out[..k - 1].iter().map(|e| unsafe { e.assume_init() }).collect();
+            let lane = |c: u32| ((c - 1000) / 7) as usize;
+            let tmin_hit = (0..8).filter(|i| mask >> i & 1 == 1).map(|i| tmin[i]).fold(f32::INFINITY, f32::min);
+            assert!(mask >> lane(near) & 1 == 1 && tmin[lane(near)] - tmin_hit <= 1e-6, "nearest {near} of {tmin:?} {mask:#b}");
+            let mut lanes: Vec<usize> = got.iter().map(|e| lane(e.child)).chain([lane(near)]).collect();
+            for w in got.windows(2) {
+                assert!(w[0].t >= w[1].t, "not farthest first: {tmin:?} {mask:#b}");
+            }
+            for e in &got {
+                let t = tmin[lane(e.child)];
+                assert!(e.t <= t && e.t >= t * (1.0 - 1e-6) && e.t >= tmin[lane(near)] * (1.0 - 1e-6), "distance {} for {t}", e.t);
+            }
+            lanes.sort();
+            assert_eq!(lanes, (0..8).filter(|i| mask >> i & 1 == 1).collect::<Vec<_>>(), "{tmin:?} {mask:#b}");
+            checked += 1;
+        }
+        assert!(checked > 5000);
     }
 
     #[test]
