@@ -43,7 +43,8 @@ pub struct EmbreeArgs {
     #[arg(long, value_delimiter = ',')]
     pub cases: Vec<String>,
     /// Runs per case and engine, alternating between the engines; each engine's best
-    /// run counts (on a shared machine the best run is the least disturbed one).
+    /// run gives `ratio` (on a shared machine the best run is the least disturbed
+    /// one), and the median of the back-to-back pairs' ratios is printed beside it.
     #[arg(long, default_value_t = 1)]
     pub repeats: usize,
     /// Print JSON lines (both engines' figures and the ratio) instead of a table.
@@ -66,8 +67,14 @@ pub struct CompareRow {
     pub embree_mrays_per_s: f64,
     /// photonlab Mrays/s.
     pub photonlab_mrays_per_s: f64,
-    /// photonlab / Embree.
+    /// photonlab / Embree, each engine's best run.
     pub ratio: f64,
+    /// Median over the repeats of photonlab / Embree within one back-to-back pair
+    /// of runs (robust to a disturbed run of either engine; equals `ratio` for one
+    /// repeat).
+    pub paired_median: f64,
+    /// Lowest and highest of those paired ratios.
+    pub paired_range: [f64; 2],
     /// Embree hit fraction.
     pub embree_hit_fraction: f64,
     /// photonlab hit fraction.
@@ -178,11 +185,15 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
                 // Back to back, so both engines see the same machine load.
                 let mut emb = run_harness(&harness, path, inside, t, a.rays)?;
                 let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1)?;
+                let mut paired = vec![pair_rows(&emb, &ours)];
                 for _ in 1..a.repeats {
-                    keep_best_embree(&mut emb, run_harness(&harness, path, inside, t, a.rays)?);
-                    keep_best_ours(&mut ours, run_mesh(&mesh, &a.accel, a.rays, inside, t, 1)?);
+                    let (e, o) = (run_harness(&harness, path, inside, t, a.rays)?, run_mesh(&mesh, &a.accel, a.rays, inside, t, 1)?);
+                    paired.push(pair_rows(&e, &o));
+                    keep_best_embree(&mut emb, e);
+                    keep_best_ours(&mut ours, o);
                 }
-                let new = pair_rows(&emb, &ours);
+                let mut new = pair_rows(&emb, &ours);
+                add_paired(&mut new, &paired);
                 for r in &new {
                     if a.json {
                         outln!("{}", serde_json::to_string(r)?);
@@ -198,6 +209,21 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
         bail!("no case could be run (models missing? see the messages above)");
     }
     Ok(())
+}
+
+/// Fills each row's median and range of the per-repeat ratios (rows of every
+/// repeat in the same order, as `pair_rows` makes them).
+fn add_paired(rows: &mut [CompareRow], repeats: &[Vec<CompareRow>]) {
+    for (i, r) in rows.iter_mut().enumerate() {
+        let mut v: Vec<f64> = repeats.iter().filter_map(|p| p.get(i)).map(|p| p.ratio).collect();
+        v.sort_by(f64::total_cmp);
+        if v.is_empty() {
+            continue;
+        }
+        let n = v.len();
+        r.paired_median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+        r.paired_range = [v[0], v[n - 1]];
+    }
 }
 
 /// Keeps, row by row, the faster of two harness runs.
@@ -234,6 +260,8 @@ fn pair_rows(emb: &[serde_json::Value], ours: &[BenchRow]) -> Vec<CompareRow> {
             embree_mrays_per_s: f("mrays_per_s"),
             photonlab_mrays_per_s: r.mrays_per_s,
             ratio: r.mrays_per_s / f("mrays_per_s"),
+            paired_median: r.mrays_per_s / f("mrays_per_s"),
+            paired_range: [r.mrays_per_s / f("mrays_per_s"); 2],
             embree_hit_fraction: f("hit_fraction"),
             photonlab_hit_fraction: r.hit_fraction,
             embree_build_s: f("build_s"),
@@ -245,7 +273,7 @@ fn pair_rows(emb: &[serde_json::Value], ours: &[BenchRow]) -> Vec<CompareRow> {
 
 fn print_header() {
     outln!(
-        "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13} | {:>16} | {:>6} | {:>9} | {:>9} |",
+        "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13} | {:>16} | {:>6} | {:>17} | {:>9} | {:>9} |",
         "scene",
         "rays",
         "thr",
@@ -253,15 +281,16 @@ fn print_header() {
         "Embree Mrays/s",
         "photonlab Mrays/s",
         "ratio",
+        "paired (range)",
         "hit (E)",
         "hit (p)"
     );
-    outln!("|---|---|---:|---|---:|---:|---:|---:|---:|");
+    outln!("|---|---|---:|---|---:|---:|---:|---:|---:|---:|");
 }
 
 fn print_row(r: &CompareRow) {
     outln!(
-        "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13.2} | {:>16.2} | {:>6.2} | {:>9.4} | {:>9.4} |",
+        "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13.2} | {:>16.2} | {:>6.2} | {:>17} | {:>9.4} | {:>9.4} |",
         r.scene,
         r.rays,
         r.threads,
@@ -269,6 +298,7 @@ fn print_row(r: &CompareRow) {
         r.embree_mrays_per_s,
         r.photonlab_mrays_per_s,
         r.ratio,
+        format!("{:.2} ({:.2}–{:.2})", r.paired_median, r.paired_range[0], r.paired_range[1]),
         r.embree_hit_fraction,
         r.photonlab_hit_fraction
     );
@@ -309,6 +339,33 @@ mod tests {
         assert_eq!(p.len(), 2, "shadow has no Embree row here");
         assert_eq!((p[0].rays.as_str(), p[0].ratio), ("camera", 0.5));
         assert_eq!((p[1].rays.as_str(), p[1].ratio), ("diffuse", 1.5), "intersect8 must not be paired");
+    }
+
+    #[test]
+    fn paired_ratios_take_the_median_per_row() {
+        let row = |rays: &str, ratio: f64| CompareRow {
+            scene: "x".into(),
+            rays: rays.into(),
+            threads: 1,
+            engine: "photonlab-bvh8".into(),
+            embree_mrays_per_s: 1.0,
+            photonlab_mrays_per_s: ratio,
+            ratio,
+            paired_median: ratio,
+            paired_range: [ratio; 2],
+            embree_hit_fraction: 0.0,
+            photonlab_hit_fraction: 0.0,
+            embree_build_s: 0.0,
+            photonlab_build_s: 0.0,
+        };
+        let reps: Vec<Vec<CompareRow>> =
+            [[0.9, 2.0], [1.3, 1.0], [1.1, 3.0], [1.2, 4.0]].iter().map(|r| vec![row("camera", r[0]), row("diffuse", r[1])]).collect();
+        let mut rows = vec![row("camera", 1.0), row("diffuse", 1.0)];
+        add_paired(&mut rows, &reps);
+        assert_eq!((rows[0].paired_median, rows[0].paired_range), (1.15, [0.9, 1.3]));
+        assert_eq!((rows[1].paired_median, rows[1].paired_range), (2.5, [1.0, 4.0]));
+        add_paired(&mut rows, &reps[..3]);
+        assert_eq!(rows[0].paired_median, 1.1);
     }
 
     #[test]
