@@ -6,7 +6,7 @@
 //! tree finds, for every subtree, the least SAH cost (node visit and 4-triangle block
 //! test cost 1 per unit area, the cost Embree's build statistics report) of covering
 //! it with at most i = 1..N children of one node, each child a wide node or a leaf
-//! of up to [`LEAF_SAH_MAX`] references. It replaced the greedy collapse (open the
+//! of up to `LEAF_SAH_MAX` references. It replaced the greedy collapse (open the
 //! child of largest area until N, plus Embree's leaf rule for left-over subtrees):
 //! SAH cost 18.21 → 17.17 on Sponza, 1.04–1.06× on its inside diffuse and shadow rays.
 //! Nodes are laid out depth-first.
@@ -20,8 +20,9 @@
 //! Traversal: the near plane of each axis is chosen by the ray's direction sign once
 //! per ray; box distances use the robust slab test of Ize (2013), the far distance
 //! widened by 1 + 2γ₃, so rounding never culls a box that a triangle hit lies in.
-//! Children are visited nearest first; stacked entries keep their entry distance and
-//! are dropped on pop when a closer hit has been found. Shadow rays return at the
+//! Children are visited nearest first (for three or more hit children at the AVX-512
+//! level without branches: `x86::sort_hits8`); stacked entries keep their entry
+//! distance and are dropped on pop when a closer hit has been found. Shadow rays return at the
 //! first hit. A leaf is a run of blocks of four triangles (one block at the default
 //! [`MAX_LEAF`]), each tested together by a lane-wise copy of
 //! [`crate::geometry::intersect_triangle`] (same operations, same order, so hits
