@@ -15,12 +15,18 @@ fn run_bench(args: &[&str]) -> (String, String, bool) {
     (String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned(), out.status.success())
 }
 
-#[test]
-fn bench_accel_prints_harness_fields() {
-    let dir = std::env::temp_dir().join(format!("photonlab-bench-smoke-{}", std::process::id()));
+/// A fresh temporary folder named after `tag` holding `box.obj`; (folder, OBJ path).
+fn box_obj(tag: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = std::env::temp_dir().join(format!("photonlab-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let obj = dir.join("box.obj");
     std::fs::write(&obj, BOX_OBJ).unwrap();
+    (dir, obj)
+}
+
+#[test]
+fn bench_accel_prints_harness_fields() {
+    let (dir, obj) = box_obj("bench-smoke");
     let accels = photonlab::registry::ACCELS.join(",");
     let (stdout, stderr, ok) = run_bench(&[
         "bench",
@@ -80,10 +86,7 @@ fn bench_accel_prints_harness_fields() {
 #[test]
 fn closed_stdout_is_not_a_panic() {
     use std::process::Stdio;
-    let dir = std::env::temp_dir().join(format!("photonlab-bench-pipe-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let obj = dir.join("box.obj");
-    std::fs::write(&obj, BOX_OBJ).unwrap();
+    let (dir, obj) = box_obj("bench-pipe");
     let mut child = Command::new(env!("CARGO_BIN_EXE_photonlab"))
         .args(["bench", "accel", "--obj", obj.to_str().unwrap(), "--rays", "100", "--json"])
         .stdout(Stdio::piped())

@@ -982,6 +982,9 @@ impl<const N: usize> WideBvh<N> {
                         // non-negative distances in `tmin`.
                         cur = unsafe { x86::sort_hits8(tmin.as_ptr(), full, child.as_ptr(), stack.top8()) };
                         stack.grow(full.count_ones() as usize - 1);
+                        // Every hit child but the lowest lane's: prefetching all of them
+                        // (the nearest is loaded next anyway) measured 0.94–0.97× on the
+                        // Sponza-inside diffuse rays.
                         let mut m = mask;
                         while m != 0 {
                             self.prefetch::<Q>(child[m.trailing_zeros() as usize]);
