@@ -100,3 +100,34 @@ fn closed_stdout_is_not_a_panic() {
     assert!(out.status.success() && !err.contains("panicked"), "{:?}: {err}", out.status);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `PHOTONLAB_SIMD` lowers the wide BVHs' traversal level (reported as `simd`), every
+/// level finds the same hits, and an unknown value is reported, not fatal.
+#[test]
+fn simd_level_override() {
+    let (dir, obj) = box_obj("bench-simd");
+    let run = |level: Option<&str>| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_photonlab"));
+        cmd.args(["bench", "accel", "--obj", obj.to_str().unwrap(), "--inside", "--rays", "300", "--accel", "bvh8", "--json"]);
+        if let Some(l) = level {
+            cmd.env("PHOTONLAB_SIMD", l);
+        }
+        let out = cmd.output().expect("running photonlab");
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+        (rows, String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (best, _) = run(None);
+    let (portable, _) = run(Some("portable"));
+    let (capped, _) = run(Some("avx2"));
+    let (bogus, err) = run(Some("sse9"));
+    assert!(portable.iter().all(|r| r["simd"] == "portable"), "{portable:?}");
+    assert!(capped.iter().all(|r| r["simd"] == "portable" || r["simd"] == "avx2"), "{capped:?}");
+    assert!(err.contains("PHOTONLAB_SIMD=sse9") && bogus.iter().zip(&best).all(|(a, b)| a["simd"] == b["simd"]), "{err}");
+    for rows in [&portable, &capped] {
+        for (a, b) in rows.iter().zip(&best) {
+            assert_eq!((&a["rays"], &a["hit_fraction"]), (&b["rays"], &b["hit_fraction"]));
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

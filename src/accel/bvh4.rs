@@ -1262,7 +1262,7 @@ fn huge_vec<T>(cap: usize) -> Vec<T> {
 /// node test (`x86::node_test8`), whose comparisons LLVM compiles to mask
 /// registers (1.03–1.05× faster than the AVX2 level on this Zen 5, see README); the
 /// AVX2 level keeps the float test, as the integer form measured 0.94–1.0× there.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 #[repr(u8)]
 pub(crate) enum Simd {
     /// Lane loops only (no x86 extensions assumed).
@@ -1278,8 +1278,26 @@ const PORTABLE: u8 = Simd::Portable as u8;
 const AVX2: u8 = Simd::Avx2 as u8;
 const AVX512: u8 = Simd::Avx512 as u8;
 
-/// The best traversal level this CPU supports.
+/// The traversal level to use: the best this CPU supports, or a lower one named by
+/// the environment variable `PHOTONLAB_SIMD` (`portable`, `avx2`, `avx512`), so the
+/// levels can be compared on one machine (`bench accel`). A level above the CPU's
+/// is not used; an unknown value is reported and ignored.
 pub(crate) fn detect_simd() -> Simd {
+    let best = cpu_simd();
+    let Ok(v) = std::env::var("PHOTONLAB_SIMD") else { return best };
+    match v.as_str() {
+        "portable" => Simd::Portable,
+        "avx2" => best.min(Simd::Avx2),
+        "avx512" => best,
+        _ => {
+            eprintln!("warning: PHOTONLAB_SIMD={v} is not one of portable, avx2, avx512; using {best:?}");
+            best
+        }
+    }
+}
+
+/// The best traversal level this CPU supports.
+fn cpu_simd() -> Simd {
     #[cfg(target_arch = "x86_64")]
     {
         use std::is_x86_feature_detected as has;
@@ -1338,6 +1356,14 @@ impl<const N: usize> Accel for WideBvh<N> {
         self.nodes.len() * std::mem::size_of::<Node<N>>()
             + self.qnodes.len() * std::mem::size_of::<QNode<N>>()
             + self.blocks.len() * std::mem::size_of::<TriBlock>()
+    }
+
+    fn simd_level(&self) -> Option<&'static str> {
+        Some(match self.simd {
+            Simd::Portable => "portable",
+            Simd::Avx2 => "avx2",
+            Simd::Avx512 => "avx512",
+        })
     }
 
     fn sah_cost(&self) -> Option<f64> {

@@ -57,6 +57,11 @@ pub trait Accel: Send + Sync {
     fn sah_cost(&self) -> Option<f64> {
         None
     }
+    /// The instruction-set level the traversal runs at (`portable`, `avx2`,
+    /// `avx512`), where the accelerator has several.
+    fn simd_level(&self) -> Option<&'static str> {
+        None
+    }
 }
 
 /// Triangle in the form the intersection test wants.

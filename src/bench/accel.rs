@@ -461,6 +461,8 @@ pub struct BenchRow {
     pub memory_bytes: usize,
     /// SAH cost as Embree's `verbose=3` statistics print it (wide BVHs only).
     pub sah: Option<f64>,
+    /// Traversal instruction-set level (wide BVHs only; `PHOTONLAB_SIMD` can lower it).
+    pub simd: Option<&'static str>,
 }
 
 /// Builds `name` over the mesh `builds` times with `threads` build threads; returns
@@ -531,6 +533,7 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
                 tri_tests_per_ray: r.stats.tri_tests as f64 / n,
                 memory_bytes: acc.memory_bytes(),
                 sah: acc.sah_cost(),
+                simd: acc.simd_level(),
             });
         }
     }

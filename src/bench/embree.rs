@@ -334,6 +334,7 @@ mod tests {
             tri_tests_per_ray: 1.0,
             memory_bytes: 0,
             sah: None,
+            simd: None,
         };
         let p = pair_rows(&emb, &[row("camera", 5.0), row("diffuse", 6.0), row("shadow", 1.0)]);
         assert_eq!(p.len(), 2, "shadow has no Embree row here");
