@@ -252,6 +252,7 @@ fn pair_rows(emb: &[serde_json::Value], ours: &[BenchRow]) -> Vec<CompareRow> {
         let api = if r.rays == "shadow" { "occluded1" } else { "intersect1" };
         let Some(e) = emb.iter().find(|e| e["rays"] == r.rays.as_str() && e["api"] == api) else { continue };
         let f = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
+        let ratio = r.mrays_per_s / f("mrays_per_s");
         out.push(CompareRow {
             scene: r.scene.clone(),
             rays: r.rays.clone(),
@@ -259,9 +260,9 @@ fn pair_rows(emb: &[serde_json::Value], ours: &[BenchRow]) -> Vec<CompareRow> {
             engine: r.engine.clone(),
             embree_mrays_per_s: f("mrays_per_s"),
             photonlab_mrays_per_s: r.mrays_per_s,
-            ratio: r.mrays_per_s / f("mrays_per_s"),
-            paired_median: r.mrays_per_s / f("mrays_per_s"),
-            paired_range: [r.mrays_per_s / f("mrays_per_s"); 2],
+            ratio,
+            paired_median: ratio,
+            paired_range: [ratio; 2],
             embree_hit_fraction: f("hit_fraction"),
             photonlab_hit_fraction: r.hit_fraction,
             embree_build_s: f("build_s"),
