@@ -43,6 +43,14 @@ pub enum Command {
     Run(crate::experiment::RunArgs),
     /// Combine the cells of a sharded experiment directory and write its tables, plots and summary.
     Merge(crate::experiment::MergeArgs),
+    /// Combine sample-range parts (`render --sample-range`, `.psum`) into OUT.exr and OUT.png; bit-identical for any split.
+    Accumulate {
+        /// Output image (.exr; a .png is written beside it).
+        out: PathBuf,
+        /// Parts (`X.psum`, or `X.exr` for its `X.psum` sidecar) that together cover samples 0..spp once.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+    },
 }
 
 /// `scene` subcommands.
@@ -157,6 +165,10 @@ pub struct RenderArgs {
     /// photons-indirect, photons-caustic, cache. Repeat or comma-separate.
     #[arg(long, value_delimiter = ',')]
     pub aov: Vec<String>,
+    /// Render only samples A..B-1 of every pixel (of the --spp N render) and write their
+    /// exact sums to OUT.psum (plus a preview OUT.exr/png); combine with `accumulate`.
+    #[arg(long, value_name = "A..B")]
+    pub sample_range: Option<crate::accumulate::SampleRange>,
     /// Output path; .exr and .png are written next to each other.
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
@@ -235,6 +247,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Stats(a) => crate::stats::run_cli(&a),
         Command::Run(a) => crate::experiment::run_cmd(&a),
         Command::Merge(a) => crate::experiment::merge_cmd(&a),
+        Command::Accumulate { out, parts } => crate::accumulate::accumulate_cmd(&out, &parts),
         Command::Diff { test, reference, out } => {
             let a = crate::film::Film::read_exr(&test)?;
             let b = crate::film::Film::read_exr(&reference)?;
@@ -274,6 +287,9 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
         eprintln!("warning: {w}");
     }
     let out = a.output.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}.exr", scene.name)));
+    if let Some(range) = a.sample_range {
+        return render_range_cmd(a, scene, &cfg, range, &out);
+    }
     let ntris = scene.triangles.len();
     let name = scene.name.clone();
     let o = render_scene_with_aovs(scene, &cfg, a.quiet, &a.aov)?;
@@ -318,6 +334,40 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
         eprintln!("warning: {} sample(s) were NaN or infinite and were dropped", o.stats.nonfinite_samples);
     }
     outln!("wrote {} and {}", exr.display(), png.display());
+    Ok(())
+}
+
+/// `render --sample-range A..B`: the part's exact sums (OUT.psum) and its preview.
+fn render_range_cmd(a: &RenderArgs, scene: Scene, cfg: &RenderConfig, range: crate::accumulate::SampleRange, out: &std::path::Path) -> Result<()> {
+    if !a.aov.is_empty() {
+        anyhow::bail!("--aov cannot be combined with --sample-range");
+    }
+    crate::accumulate::check_range(cfg, range)?;
+    let key = crate::experiment::reference_key(&scene, cfg)?;
+    let name = scene.name.clone();
+    let o = crate::accumulate::render_part(scene, cfg, range, &key, a.quiet)?;
+    let psum = crate::accumulate::part_path(out);
+    o.part.write(&psum).context("writing the part")?;
+    let (exr, png) = crate::accumulate::part_preview(&o.part).write_pair(out).context("writing the preview")?;
+    let h = &o.part.header;
+    outln!(
+        "scene {name}: {}x{} px, samples {range} of {} spp, integrator {}, {} threads",
+        h.width,
+        h.height,
+        cfg.spp,
+        cfg.integrator,
+        o.threads
+    );
+    outln!(
+        "time: accel build {:.3} s, preprocess {:.3} s, render {:.3} s",
+        o.timings.accel_build_s,
+        o.timings.preprocess_s,
+        o.timings.render_s
+    );
+    if h.nonfinite_samples > 0 {
+        eprintln!("warning: {} sample(s) were NaN or infinite and were dropped", h.nonfinite_samples);
+    }
+    outln!("wrote {} (exact sums; combine with `photonlab accumulate`), preview {} and {}", psum.display(), exr.display(), png.display());
     Ok(())
 }
 

@@ -21,6 +21,7 @@ macro_rules! outln {
 }
 
 pub mod accel;
+pub mod accumulate;
 pub mod bench;
 pub mod camera;
 pub mod cli;

@@ -16,7 +16,6 @@ pub mod output;
 pub mod plots;
 
 use crate::film::{Film, write_atomic};
-use crate::pipeline::render_scene;
 use crate::scene::Scene;
 use anyhow::{Context, Result, anyhow, bail};
 use cell::{CellPaths, bias_variance, finished, run_cell};
@@ -202,8 +201,17 @@ pub fn reference_key(scene: &Scene, cfg: &crate::config::RenderConfig) -> Result
 }
 
 /// The reference image: cached render under `refs_dir` or the manifest's file.
-/// Returns (image, key, description, rendered now).
-fn ensure_reference(m: &Manifest, scene: &Scene, refs_dir: &Path, quiet: bool) -> Result<(Film, String, String, bool)> {
+/// Returns (image, key, description, rendered now); the image is `None` when
+/// `finish` is false and other shards' reference parts are still missing
+/// (see [`crate::accumulate::reference_from_parts`]).
+fn ensure_reference(
+    m: &Manifest,
+    scene: &Scene,
+    refs_dir: &Path,
+    shard: Option<Shard>,
+    finish: bool,
+    quiet: bool,
+) -> Result<(Option<Film>, String, String, bool)> {
     match &m.reference {
         ReferenceSpec::File(p) => {
             let bytes = std::fs::read(p).map_err(|e| anyhow!("{}: [reference] file {}: {e}", m.path.display(), p.display()))?;
@@ -221,7 +229,7 @@ fn ensure_reference(m: &Manifest, scene: &Scene, refs_dir: &Path, quiet: bool) -
             }
             let mut h = Fnv::default();
             h.write(&bytes);
-            Ok((film, format!("file-{:016x}", h.0), format!("file `{}`", p.display()), false))
+            Ok((Some(film), format!("file-{:016x}", h.0), format!("file `{}`", p.display()), false))
         }
         ReferenceSpec::Render(cfg) => {
             let key = reference_key(scene, cfg)?;
@@ -236,21 +244,25 @@ fn ensure_reference(m: &Manifest, scene: &Scene, refs_dir: &Path, quiet: bool) -
             if let Ok(f) = Film::read_exr(&path)
                 && [f.width, f.height] == m.resolution
             {
-                return Ok((f, key, desc, false));
+                return Ok((Some(f), key, desc, false));
             }
             if !quiet {
                 eprintln!("rendering the reference ({} integrator, {} spp) → {}", cfg.integrator, cfg.spp, path.display());
             }
             let t0 = Instant::now();
-            let o = render_scene(scene.clone(), cfg, quiet).context("rendering the reference")?;
-            o.film.write_exr(&path)?;
-            o.film.write_png(&path.with_extension("png"))?;
+            // Exact sums: the same bits whether rendered whole or as the shards' parts.
+            let shard = shard.map(|s| (s.index, s.count));
+            let (film, rendered) = crate::accumulate::reference_from_parts(scene, cfg, &key, &path, shard, finish, quiet)
+                .context("rendering the reference")?;
+            let Some(film) = film else { return Ok((None, key, desc, rendered)) };
+            film.write_exr(&path)?;
+            film.write_png(&path.with_extension("png"))?;
             let meta = serde_json::json!({
                 "key": key, "scene": scene.name, "config": cfg, "seconds": t0.elapsed().as_secs_f64(),
                 "version": env!("CARGO_PKG_VERSION"),
             });
             write_atomic(&path.with_extension("json"), serde_json::to_string_pretty(&meta)?.as_bytes())?;
-            Ok((o.film, key, desc, true))
+            Ok((Some(film), key, desc, rendered))
         }
     }
 }
@@ -290,9 +302,15 @@ pub fn run(args: &RunArgs) -> Result<RunReport> {
     let mut references = Vec::new();
     let mut infos = Vec::new();
     let mut reference_rendered = false;
+    let mut pending = 0;
     for (spec, scene) in m.scenes.iter().zip(&scenes) {
-        let (film, key, description, rendered) = ensure_reference(&m, scene, &references_dir(&out), args.quiet)?;
+        let (film, key, description, rendered) =
+            ensure_reference(&m, scene, &references_dir(&out), args.shard, !args.reference_only, args.quiet)?;
         reference_rendered |= rendered;
+        let Some(film) = film else {
+            pending += 1;
+            continue;
+        };
         let file = format!("reference-{}.exr", manifest_slug(&spec.name()));
         // The experiment directory is self-contained: merge needs only what is inside it.
         if Film::read_exr(&out.join(&file)).ok().as_ref() != Some(&film) {
@@ -301,6 +319,13 @@ pub fn run(args: &RunArgs) -> Result<RunReport> {
         }
         references.push(film);
         infos.push(RefInfo { scene: spec.name(), key, description, file });
+    }
+    if pending > 0 {
+        // --reference-only under --shard: this task's reference parts are done.
+        if !args.quiet {
+            eprintln!("{pending} reference(s) wait for other shards' parts; the last shard to finish its part assembles them");
+        }
+        return Ok(RunReport { dir: out, reference_rendered, ..Default::default() });
     }
     write_atomic(&out.join("manifest.toml"), m.text.as_bytes())?;
     let info =
