@@ -436,7 +436,8 @@ pub fn parts_dir(ref_exr: &Path) -> PathBuf {
 /// present cover every sample, they are accumulated into the image. Otherwise,
 /// with `finish` false (`--reference-only`: other array tasks render the rest) it
 /// returns `None`; with `finish` true it renders the missing samples itself (any
-/// split gives the same bits). Returns the image and whether anything was rendered.
+/// split gives the same bits). Unsharded (or N = 1), the whole range is rendered in
+/// memory. Returns the image and whether anything was rendered.
 pub fn reference_from_parts(
     scene: &Scene,
     cfg: &RenderConfig,
@@ -471,13 +472,15 @@ pub fn reference_from_parts(
     if let Some((i, n)) = shard.filter(|_| sharded) {
         let mine = SampleRange::split(cfg.spp, i, n);
         if !mine.is_empty() && !parts.iter().any(|(_, p)| p.header.range == mine) {
-            parts.push(render(mine)?);
+            render(mine)?;
             rendered = true;
+            // Other tasks may have finished their parts meanwhile.
+            parts = read_parts(&dir, cfg, key, quiet);
         }
     }
     let (mut chain, gaps) = cover(cfg.spp, &parts);
     if !gaps.is_empty() {
-        if !finish {
+        if !finish && sharded {
             return Ok((None, rendered));
         }
         if sharded && !quiet {
