@@ -419,7 +419,15 @@ pub fn accumulate_cmd(out: &Path, parts: &[PathBuf]) -> Result<()> {
     if bad > 0 {
         eprintln!("warning: {bad} sample(s) were NaN or infinite and were dropped");
     }
-    outln!("accumulated {} part(s), samples 0..{} of {}x{} px → {} and {}", parts.len(), h.spp, h.width, h.height, exr.display(), png.display());
+    outln!(
+        "accumulated {} part(s), samples 0..{} of {}x{} px → {} and {}",
+        parts.len(),
+        h.spp,
+        h.width,
+        h.height,
+        exr.display(),
+        png.display()
+    );
     Ok(())
 }
 
@@ -501,7 +509,8 @@ pub fn reference_from_parts(
 /// The readable parts in `dir` that belong to (cfg, key); others are skipped with a warning.
 fn read_parts(dir: &Path, cfg: &RenderConfig, key: &str, quiet: bool) -> Vec<(PathBuf, Part)> {
     let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
-    let mut paths: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "psum")).collect();
+    let mut paths: Vec<PathBuf> =
+        entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "psum")).collect();
     paths.sort();
     let mut out = Vec::new();
     for p in paths {

@@ -338,7 +338,13 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
 }
 
 /// `render --sample-range A..B`: the part's exact sums (OUT.psum) and its preview.
-fn render_range_cmd(a: &RenderArgs, scene: Scene, cfg: &RenderConfig, range: crate::accumulate::SampleRange, out: &std::path::Path) -> Result<()> {
+fn render_range_cmd(
+    a: &RenderArgs,
+    scene: Scene,
+    cfg: &RenderConfig,
+    range: crate::accumulate::SampleRange,
+    out: &std::path::Path,
+) -> Result<()> {
     if !a.aov.is_empty() {
         anyhow::bail!("--aov cannot be combined with --sample-range");
     }

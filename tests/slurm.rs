@@ -244,9 +244,12 @@ fn slurm_workflow_with_a_requeued_shard_equals_a_single_machine_run() {
         assert_eq!(x, y, "summary.md differs");
     }
     assert_eq!(sa.len(), sb.len());
-    let reference = |dir: &Path| std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).find(|p| {
-        p.file_name().unwrap().to_string_lossy().starts_with("reference-") && p.extension().is_some_and(|e| e == "exr")
-    });
+    let reference = |dir: &Path| {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.file_name().unwrap().to_string_lossy().starts_with("reference-") && p.extension().is_some_and(|e| e == "exr"))
+    };
     assert_eq!(exr_bits(&reference(&single).unwrap()), exr_bits(&reference(&sharded).unwrap()), "reference images differ");
     // Threads = the CPUs Slurm gave each task.
     let t = std::fs::read_to_string(sharded.join("cells.csv")).unwrap();
@@ -294,8 +297,51 @@ fn shard_script_refuses_to_run_outside_an_array_or_on_an_unshared_directory() {
     std::fs::create_dir_all(&d).unwrap();
     std::fs::write(d.join(".slurm-submit-token"), "written-on-another-node\n").unwrap();
     let ok = [("SLURM_JOB_ID", "7"), ("SLURM_ARRAY_TASK_ID", "1"), ("SLURM_ARRAY_TASK_COUNT", "2"), ("SLURM_ARRAY_TASK_MIN", "1")];
-    let env = [ok.as_slice(), &[("SLURM_ARRAY_TASK_MAX", "2"), ("PHOTONLAB_SUBMIT_TOKEN", "mine"), ("PHOTONLAB_OUT", d.to_str().unwrap())]].concat();
+    let env = [ok.as_slice(), &[("SLURM_ARRAY_TASK_MAX", "2"), ("PHOTONLAB_SUBMIT_TOKEN", "mine"), ("PHOTONLAB_OUT", d.to_str().unwrap())]]
+        .concat();
     let (code, t) = run(&env);
     assert!(code == Some(2) && t.contains("not shared") && t.contains("photonlab merge"), "{t}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// `render --sample-range` + `accumulate` through the command line: 4 parts and 2 parts
+/// give byte-identical files; bad parts are errors with a non-zero exit.
+#[test]
+fn accumulated_parts_are_byte_identical_files_for_any_split() {
+    let d = std::env::temp_dir().join(format!("photonlab-parts-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let render = |range: &str, out: &str| {
+        let o = Command::new(BIN)
+            .args(["render", "--resolution", "20x20", "--spp", "8", "--quiet", "--sample-range", range, "-o"])
+            .arg(d.join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", text(&o));
+    };
+    for (r, o) in [("0..2", "a"), ("2..4", "b"), ("4..6", "c"), ("6..8", "d"), ("0..4", "e"), ("4..8", "f")] {
+        render(r, o);
+    }
+    let acc = |out: &str, parts: &[&str]| {
+        let mut c = Command::new(BIN);
+        c.arg("accumulate").arg(d.join(out));
+        for p in parts {
+            c.arg(d.join(p));
+        }
+        c.output().unwrap()
+    };
+    assert!(acc("four.exr", &["d.psum", "a.psum", "c.exr", "b.psum"]).status.success());
+    assert!(acc("two.exr", &["e.psum", "f.psum"]).status.success());
+    let (four, two) = (std::fs::read(d.join("four.exr")).unwrap(), std::fs::read(d.join("two.exr")).unwrap());
+    assert!(four.len() > 1000 && four == two, "4-part and 2-part EXR files differ");
+    let o = acc("bad.exr", &["a.psum", "e.psum", "f.psum"]);
+    assert!(o.status.code() == Some(1) && text(&o).contains("overlap") && text(&o).contains("e.psum"), "{}", text(&o));
+    let o = acc("bad.exr", &["a.psum", "f.psum"]);
+    assert!(o.status.code() == Some(1) && text(&o).contains("samples 2..4 of 8 are in no part"), "{}", text(&o));
+    std::fs::write(d.join("junk.psum"), "not a part").unwrap();
+    let o = acc("bad.exr", &["junk.psum"]);
+    assert!(o.status.code() == Some(1) && text(&o).contains("junk.psum: not a photonlab sample-range part"), "{}", text(&o));
+    let o = Command::new(BIN).args(["render", "--spp", "8", "--sample-range", "4..9", "-o"]).arg(d.join("x")).output().unwrap();
+    assert!(o.status.code() == Some(1) && text(&o).contains("not inside the render's 8 samples"), "{}", text(&o));
     std::fs::remove_dir_all(&d).ok();
 }

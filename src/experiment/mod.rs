@@ -193,7 +193,7 @@ pub fn reference_key(scene: &Scene, cfg: &crate::config::RenderConfig) -> Result
     let mut c = cfg.clone();
     c.threads = 0;
     let mut h = Fnv::default();
-    h.str("photonlab-reference-v1");
+    h.str("photonlab-reference-v2"); // v2: references are exact sums (src/accumulate.rs)
     h.str(env!("CARGO_PKG_VERSION"));
     h.write(&scene_fingerprint(scene).to_le_bytes());
     h.str(&toml::to_string(&c)?);
