@@ -55,6 +55,13 @@ our_pids() {
     done
 }
 
+# Alive and not a zombie (a zombie waits for its parent, it runs nothing).
+running() {
+    local st
+    st=$( { sed 's/.*) //' "/proc/$1/stat" | cut -d' ' -f1; } 2>/dev/null) || return 1
+    [[ -n $st && $st != Z ]]
+}
+
 write_config() {
     mkdir -p "$D"/{etc,munge,log,state/ctld,state/d,run}
     chmod 700 "$D/munge"
@@ -155,25 +162,34 @@ down() {
             done
         fi
     fi
-    local f pid
+    local f pid pids alive
+    pids=$(our_pids | tr '\n' ' ')
     for f in slurmd slurmctld munged; do
         pid=$(cat "$D/run/$f.pid" 2>/dev/null || true)
-        [[ -n $pid ]] && kill "$pid" 2>/dev/null || true
+        # Only the daemon itself: a stale pid file may name a reused pid.
+        if [[ -n $pid && $(cat "/proc/$pid/comm" 2>/dev/null) == "$f" ]]; then
+            pids="$pids $pid"
+            kill "$pid" 2>/dev/null || true
+        fi
     done
-    for _ in $(seq 1 20); do
-        [[ -z $(our_pids) ]] && break
+    # Wait until every process seen before is gone (an exiting process's environ is
+    # no longer readable, so look at the pids themselves).
+    for _ in $(seq 1 40); do
+        alive=
+        for pid in $pids; do if running "$pid"; then alive="$alive $pid"; fi; done
+        [[ -z $alive && -z $(our_pids) ]] && break
         sleep 0.5
     done
-    pid=$(our_pids | tr '\n' ' ')
-    if [[ -n ${pid// /} ]]; then
-        say "killing leftover processes $pid"
+    alive=$(for pid in $pids $(our_pids); do if running "$pid"; then echo "$pid"; fi; done | sort -u | tr '\n' ' ')
+    if [[ -n ${alive// /} ]]; then
+        say "killing leftover processes $alive"
         # shellcheck disable=SC2086
-        kill -9 $pid 2>/dev/null || true
+        kill -9 $alive 2>/dev/null || true
         sleep 1
     fi
     rm -f "$D"/run/*.pid
-    pid=$(our_pids | tr '\n' ' ')
-    [[ -z ${pid// /} ]] || die "processes still running: $pid"
+    alive=$(for pid in $pids $(our_pids); do if running "$pid"; then echo "$pid"; fi; done | sort -u | tr '\n' ' ')
+    [[ -z ${alive// /} ]] || die "processes still running: $alive"
     say "down: nothing of the cluster in $D is running"
 }
 
