@@ -159,13 +159,13 @@ impl Part {
         let header: PartHeader = serde_json::from_slice(head).map_err(|e| bad(format!("header: {e}")))?;
         let pixels = header.width as usize * header.height as usize;
         let data = &bytes[body + n..];
-        if data.len() != pixels * 48 || header.range.is_empty() || header.range.end > header.spp {
+        if Some(data.len()) != pixels.checked_mul(48) || header.range.is_empty() || header.range.end > header.spp {
             return Err(bad(format!(
                 "{} bytes of sums for {}x{} pixels (expected {}), samples {} of {}",
                 data.len(),
                 header.width,
                 header.height,
-                pixels * 48,
+                pixels.saturating_mul(48),
                 header.range,
                 header.spp
             )));
