@@ -33,6 +33,10 @@ pub enum Command {
         /// Write the signed difference (test − reference), scaled ×4 around grey, to this PNG.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Also compare means over BLOCK×BLOCK-pixel blocks (blocks whose reference
+        /// mean exceeds 0.005) and print the worst block's relative error.
+        #[arg(long)]
+        block: Option<u32>,
     },
     /// Benchmarks (release builds).
     #[command(subcommand)]
@@ -161,6 +165,24 @@ pub struct RenderArgs {
     /// Photon integrator: largest cache radius (fraction of the scene radius).
     #[arg(long)]
     pub ic_max_radius: Option<f32>,
+    /// Photon integrator: smallest cache radius in pixel footprints.
+    #[arg(long)]
+    pub ic_min_pixels: Option<f32>,
+    /// Photon integrator: largest cache radius in pixel footprints.
+    #[arg(long)]
+    pub ic_max_pixels: Option<f32>,
+    /// Photon integrator: irradiance gradients in the cache (true/false).
+    #[arg(long)]
+    pub ic_gradients: Option<bool>,
+    /// Photon integrator: rays per irradiance-cache entry.
+    #[arg(long)]
+    pub ic_samples: Option<u32>,
+    /// Photon integrator: neighbour clamping of cache radii (true/false).
+    #[arg(long)]
+    pub ic_neighbor_clamp: Option<bool>,
+    /// Photon integrator: rays drawn from the glossy lobe at glossy points.
+    #[arg(long)]
+    pub glossy_samples: Option<u32>,
     /// Extra images (photon integrator): direct, caustic, indirect, photons-direct,
     /// photons-indirect, photons-caustic, cache. Repeat or comma-separate.
     #[arg(long, value_delimiter = ',')]
@@ -208,6 +230,7 @@ impl RenderArgs {
         }
         set!(photons, caustic_photons, max_emitted, gather, gather_samples, gather_bounces, precomputed_irradiance, precompute_stride, k);
         set!(caustic_k, filter, disc, direct_samples, direct_sampler, ic_tolerance, ic_min_radius, ic_max_radius);
+        set!(ic_min_pixels, ic_max_pixels, ic_gradients, ic_neighbor_clamp, glossy_samples, ic_samples);
         if self.emit_photons.is_some() {
             c.emit_photons = self.emit_photons;
         }
@@ -248,7 +271,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Run(a) => crate::experiment::run_cmd(&a),
         Command::Merge(a) => crate::experiment::merge_cmd(&a),
         Command::Accumulate { out, parts } => crate::accumulate::accumulate_cmd(&out, &parts),
-        Command::Diff { test, reference, out } => {
+        Command::Diff { test, reference, out, block } => {
             let a = crate::film::Film::read_exr(&test)?;
             let b = crate::film::Film::read_exr(&reference)?;
             if (a.width, a.height) != (b.width, b.height) {
@@ -265,6 +288,21 @@ pub fn run(cli: Cli) -> Result<()> {
             let n = (a.pixels.len() * 3) as f64;
             outln!("mean test {:?} reference {:?}", a.mean().to_array(), b.mean().to_array());
             outln!("rmse {:.6} relmse {:.6}", (se / n).sqrt(), rel / n);
+            if let Some(size) = block {
+                let rep = crate::compare::compare_blocks(&a, &b, size, 0.005)?;
+                outln!("image mean ratio {:.4}; {} blocks of {size} px judged", rep.mean_ratio, rep.blocks.len());
+                if let Some(w) = rep.worst() {
+                    outln!(
+                        "worst block ({}, {}): test {:.5} reference {:.5} rel {:+.4} (std err {:.5})",
+                        w.at.0,
+                        w.at.1,
+                        w.test,
+                        w.reference,
+                        w.rel(),
+                        w.std_err
+                    );
+                }
+            }
             if let Some(o) = out {
                 let mut d = a.clone();
                 for (p, q) in d.pixels.iter_mut().zip(&b.pixels) {

@@ -52,10 +52,12 @@ pub struct RenderConfig {
     pub k: u32,
     /// Photons per caustic radiance estimate.
     pub caustic_k: u32,
-    /// Maximum search radius of global estimates (scene units); default 0.1 × the
-    /// scene's bounding-sphere radius.
+    /// Maximum search radius of global estimates (scene units); default 3 × the
+    /// radius holding `k` photons at the mean density of the stored global photons
+    /// over the triangles they landed on.
     pub max_radius: Option<f32>,
-    /// Maximum search radius of caustic estimates; default 0.025 × the bounding radius.
+    /// Maximum search radius of caustic estimates; default 3 × the radius holding
+    /// `caustic_k` caustic photons at their mean density.
     pub caustic_max_radius: Option<f32>,
     /// Density-estimation filter: `box`, `cone`, `gaussian`.
     pub filter: String,
@@ -72,6 +74,23 @@ pub struct RenderConfig {
     pub ic_min_radius: f32,
     /// Largest irradiance-cache valid radius, fraction of the bounding radius.
     pub ic_max_radius: f32,
+    /// Smallest irradiance-cache valid radius in pixel footprints at the entry
+    /// (Tabellion & Lamorlette 2004); an entry is used within `ic_tolerance` × radius.
+    pub ic_min_pixels: f32,
+    /// Largest irradiance-cache valid radius in pixel footprints at the entry.
+    pub ic_max_pixels: f32,
+    /// Irradiance gradients (Ward & Heckbert 1992) in the cache's interpolation, and
+    /// the radius limit E/|∇E| (Křivánek et al. 2006).
+    pub ic_gradients: bool,
+    /// Rays per irradiance-cache entry (stratified M × N with N ≈ πM). Entries are
+    /// few and each is reused over many pixels, so an entry's noise becomes a blotch:
+    /// they get more rays than a per-pixel final gather.
+    pub ic_samples: u32,
+    /// Neighbour clamping of cache radii (Křivánek et al. 2006): R_i ≤ R_j + |p_i − p_j|.
+    pub ic_neighbor_clamp: bool,
+    /// Rays drawn from the glossy lobe at glossy gathering points (the diffuse part
+    /// uses the final gather or the cache).
+    pub glossy_samples: u32,
 }
 
 /// Depth cap when `max_depth` is unset. A path (or photon) caught by total internal
@@ -121,6 +140,12 @@ impl Default for RenderConfig {
             ic_tolerance: 0.3,
             ic_min_radius: 0.01,
             ic_max_radius: 0.25,
+            ic_min_pixels: 10.0,
+            ic_max_pixels: 100.0,
+            ic_gradients: true,
+            ic_samples: 256,
+            ic_neighbor_clamp: true,
+            glossy_samples: 16,
         }
     }
 }

@@ -25,6 +25,7 @@ pub mod accumulate;
 pub mod bench;
 pub mod camera;
 pub mod cli;
+pub mod compare;
 pub mod config;
 pub mod experiment;
 pub mod film;

@@ -27,6 +27,6 @@ impl Gather for FinalGather {
         key: ShadeKey,
         stats: &mut TraversalStats,
     ) -> Color {
-        ctx.final_gather(world, it, wo, bsdf, 0, key, stats).radiance
+        ctx.gathered_indirect(world, it, wo, bsdf, 0, key, stats)
     }
 }

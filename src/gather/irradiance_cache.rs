@@ -1,28 +1,38 @@
 //! `irradiance_cache`: Ward's irradiance cache (Ward, Rubinstein & Clear 1988) over the
 //! final gather, optionally on top of precomputed irradiance.
 //!
-//! An entry stores the indirect irradiance from a final gather, the surface normal
-//! and a valid radius R = harmonic mean of the gather-ray hit distances (report
-//! eq. 11), clamped to [`ic_min_radius`, `ic_max_radius`] × the scene's bounding
-//! radius. A lookup at P with normal N uses the entries with
+//! An entry stores the indirect irradiance from a stratified final gather
+//! ([`super::hemisphere`]), its rotational and translational gradients (Ward &
+//! Heckbert 1992), the facing shading normal and a valid radius R: the harmonic mean
+//! of the gather-ray hit distances (report eq. 11), limited by E/|∇E| (Křivánek et
+//! al. 2006), clamped by its neighbours (R_i ≤ R_j + |p_i − p_j|, the same paper) and
+//! finally to [`ic_min_pixels`, `ic_max_pixels`] pixel footprints at the entry
+//! (Tabellion & Lamorlette 2004) and [`ic_min_radius`, `ic_max_radius`] × the scene's
+//! bounding radius. A lookup at P with normal N uses the entries with
 //! w_i = 1 / (|P − P_i| / R_i + √(1 − N·N_i)) > 1/a (a = tolerance), which are within
 //! a·R_i, have a similar normal, and are not in front of P (Ward's
 //! (P − P_i)·(N + N_i)/2 ≥ 0 test), and returns Σ w_i E_i / Σ w_i (eq. 12–13; the report
 //! prints eq. 13 without the /R_i and with 1 + N·N_i, which we read as a typo for
-//! Ward's form).
+//! Ward's form), each E_i extrapolated by its gradients to (P, N) first:
+//! E_i + (N_i × N)·∇_r + (P − P_i)·∇_t, clamped at zero. A smaller tolerance a shrinks
+//! every entry's reach, so bias falls monotonically with it (at more entries).
 //!
 //! Reproducibility: the cache is filled before rendering by a deterministic prefill
-//! (rounds over the pixel centres at strides 16, 8, 4, 2, 1; within a round every
-//! miss is computed in parallel against the cache of the previous rounds, and the new
-//! entries are inserted in pixel order), then frozen. A render-time miss computes a
+//! (rounds over the pixels at strides 16, 8, 4, 2, 1, one jittered position per
+//! pixel — pixel centres would put whole rows of entries exactly on the edges of
+//! symmetric scenes, where gather rays start inside the neighbouring wall and leak
+//! light through it; within a round every miss is computed in parallel against the
+//! cache of the previous rounds, the new entries are inserted in pixel order and
+//! neighbour clamping runs over all entries at once), then frozen. A render-time miss computes a
 //! final gather for that point alone and does not insert it, so images are
 //! bit-identical for any thread count.
 
-use super::{Gather, PhotonContext, ShadeKey};
+use super::{Gather, PhotonContext, ShadeKey, hemisphere};
 use crate::accel::TraversalStats;
+use crate::config::RenderConfig;
 use crate::material::Bsdf;
-use crate::math::Color;
-use crate::photon::estimate::facing_normal;
+use crate::math::{Color, hash_words, u32_to_unit};
+use crate::photon::estimate::facing_shading_normal;
 use crate::photon::kdtree::{KdPoint, KdTree};
 use crate::world::{Interaction, World};
 use glam::Vec3;
@@ -34,12 +44,20 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub struct CacheEntry {
     /// Position.
     pub pos: Vec3,
-    /// Normal on the gathered side.
+    /// Shading normal on the gathered side.
     pub normal: Vec3,
     /// Indirect irradiance.
     pub irradiance: Color,
-    /// Valid radius R_i.
+    /// Valid radius R_i in use (after every clamp).
     pub radius: f32,
+    /// Radius before the min/max clamps (what neighbour clamping propagates).
+    pub radius_unclamped: f32,
+    /// Clamp interval of this entry.
+    pub radius_bounds: (f32, f32),
+    /// Rotational gradient per channel.
+    pub rot_grad: [Vec3; 3],
+    /// Translational gradient per channel.
+    pub trans_grad: [Vec3; 3],
 }
 
 impl KdPoint for CacheEntry {
@@ -49,9 +67,29 @@ impl KdPoint for CacheEntry {
 }
 
 impl CacheEntry {
-    /// New entry.
+    /// New entry without gradients.
     pub fn new(pos: Vec3, normal: Vec3, irradiance: Color, radius: f32) -> Self {
-        CacheEntry { pos, normal, irradiance, radius }
+        CacheEntry {
+            pos,
+            normal,
+            irradiance,
+            radius,
+            radius_unclamped: radius,
+            radius_bounds: (0.0, f32::INFINITY),
+            rot_grad: [Vec3::ZERO; 3],
+            trans_grad: [Vec3::ZERO; 3],
+        }
+    }
+
+    /// The entry's irradiance extrapolated to (p, n) by its gradients, at least zero.
+    #[inline]
+    pub fn extrapolate(&self, p: Vec3, n: Vec3) -> Color {
+        let (cross, dp) = (self.normal.cross(n), p - self.pos);
+        let mut e = self.irradiance;
+        for c in 0..3 {
+            e[c] = (e[c] + cross.dot(self.rot_grad[c]) + dp.dot(self.trans_grad[c])).max(0.0);
+        }
+        e
     }
 }
 
@@ -71,16 +109,47 @@ pub fn weight(e: &CacheEntry, p: Vec3, n: Vec3, tolerance: f32) -> f32 {
     if w > 1.0 / tolerance { w } else { 0.0 }
 }
 
-/// The cache.
-pub struct IrradianceCache {
+/// Settings of the cache (from the `ic_*` keys).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CacheSettings {
     /// Tolerance a.
     pub tolerance: f32,
-    /// Valid-radius clamp, fraction of the scene's bounding radius.
+    /// Radius clamp, fractions of the scene's bounding radius.
     pub min_frac: f32,
-    /// Valid-radius clamp, fraction of the scene's bounding radius.
+    /// Radius clamp, fractions of the scene's bounding radius.
     pub max_frac: f32,
-    min_radius: f32,
-    max_radius: f32,
+    /// Radius clamp in pixel footprints.
+    pub min_pixels: f32,
+    /// Radius clamp in pixel footprints.
+    pub max_pixels: f32,
+    /// Gradients in interpolation and the E/|∇E| radius limit.
+    pub gradients: bool,
+    /// Neighbour clamping.
+    pub neighbor_clamp: bool,
+    /// Rays per entry.
+    pub rays: u32,
+}
+
+impl CacheSettings {
+    /// Reads the `ic_*` keys.
+    pub fn from_config(cfg: &RenderConfig) -> Self {
+        CacheSettings {
+            tolerance: cfg.ic_tolerance,
+            min_frac: cfg.ic_min_radius,
+            max_frac: cfg.ic_max_radius,
+            min_pixels: cfg.ic_min_pixels,
+            max_pixels: cfg.ic_max_pixels,
+            gradients: cfg.ic_gradients,
+            neighbor_clamp: cfg.ic_neighbor_clamp,
+            rays: cfg.ic_samples,
+        }
+    }
+}
+
+/// The cache.
+pub struct IrradianceCache {
+    /// Settings.
+    pub settings: CacheSettings,
     tree: KdTree<CacheEntry>,
     largest: f32,
     hits: AtomicU64,
@@ -90,20 +159,9 @@ pub struct IrradianceCache {
 }
 
 impl IrradianceCache {
-    /// Empty cache; the radius clamps are fractions of the scene's bounding radius.
-    pub fn new(tolerance: f32, min_frac: f32, max_frac: f32) -> Self {
-        IrradianceCache {
-            tolerance,
-            min_frac,
-            max_frac,
-            min_radius: 0.0,
-            max_radius: f32::INFINITY,
-            tree: KdTree::default(),
-            largest: 0.0,
-            hits: AtomicU64::new(0),
-            misses: AtomicU64::new(0),
-            rounds: 0,
-        }
+    /// Empty cache.
+    pub fn new(settings: CacheSettings) -> Self {
+        IrradianceCache { settings, tree: KdTree::default(), largest: 0.0, hits: AtomicU64::new(0), misses: AtomicU64::new(0), rounds: 0 }
     }
 
     /// Entries.
@@ -116,17 +174,22 @@ impl IrradianceCache {
         if self.tree.is_empty() {
             return None;
         }
-        let reach = self.tolerance * self.largest;
+        let a = self.settings.tolerance;
+        let reach = a * self.largest;
         let (mut ws, mut acc) = (0.0f32, Color::ZERO);
         self.tree.for_each_within(p, reach * reach, &mut |i, _| {
             let e = &self.tree.points[i];
-            let w = weight(e, p, n, self.tolerance);
+            let w = weight(e, p, n, a);
+            if w <= 0.0 {
+                return;
+            }
+            let ei = if self.settings.gradients { e.extrapolate(p, n) } else { e.irradiance };
             if w.is_infinite() {
                 ws = f32::INFINITY;
-                acc = e.irradiance;
-            } else if w > 0.0 && ws.is_finite() {
+                acc = ei;
+            } else if ws.is_finite() {
                 ws += w;
-                acc += e.irradiance * w;
+                acc += ei * w;
             }
         });
         if ws.is_infinite() {
@@ -138,7 +201,8 @@ impl IrradianceCache {
         }
     }
 
-    /// Adds entries (rebuilding the tree).
+    /// Adds entries (rebuilding the tree), then clamps every radius by its
+    /// neighbours when enabled.
     pub fn insert(&mut self, new: Vec<CacheEntry>) {
         if new.is_empty() {
             return;
@@ -147,8 +211,39 @@ impl IrradianceCache {
         all.extend(new);
         self.largest = all.iter().map(|e| e.radius).fold(0.0, f32::max);
         self.tree = KdTree::build(all);
+        if self.settings.neighbor_clamp {
+            self.clamp_neighbours();
+        }
     }
 
+    /// Neighbour clamping (Křivánek et al. 2006): R_i ≤ R_j + |p_i − p_j| over all
+    /// pairs, computed from the unclamped radii of all entries at once, so the
+    /// result does not depend on insertion order.
+    fn clamp_neighbours(&mut self) {
+        let tree = &self.tree;
+        let clamped: Vec<f32> = (0..tree.len())
+            .into_par_iter()
+            .map(|i| {
+                let e = &tree.points[i];
+                let mut r = e.radius_unclamped;
+                // A neighbour further than the upper clamp cannot change the result.
+                let reach = r.min(e.radius_bounds.1);
+                tree.for_each_within(e.pos, reach * reach, &mut |j, d2| {
+                    if j != i {
+                        r = r.min(tree.points[j].radius_unclamped + d2.sqrt());
+                    }
+                });
+                r
+            })
+            .collect();
+        for (e, r) in self.tree.points.iter_mut().zip(clamped) {
+            e.radius_unclamped = r;
+            e.radius = r.clamp(e.radius_bounds.0, e.radius_bounds.1);
+        }
+        self.largest = self.tree.points.iter().map(|e| e.radius).fold(0.0, f32::max);
+    }
+
+    /// Computes an entry at `it`, whose pixel footprint (scene units) is `footprint`.
     #[allow(clippy::too_many_arguments)]
     fn entry_at(
         &self,
@@ -156,21 +251,51 @@ impl IrradianceCache {
         world: &World,
         it: &Interaction,
         wo: Vec3,
-        bsdf: &Bsdf,
+        footprint: f32,
         key: ShadeKey,
         stats: &mut TraversalStats,
     ) -> CacheEntry {
-        let g = ctx.final_gather(world, it, wo, bsdf, 0, key, stats);
-        let r = g.harmonic_distance.clamp(self.min_radius, self.max_radius);
-        CacheEntry::new(it.p, facing_normal(it, wo), g.irradiance, r)
+        let st = &self.settings;
+        let g = hemisphere::gather(ctx, world, it, wo, st.rays, key, stats);
+        let scene_r = world.lights.scene_radius;
+        let lo = (st.min_frac * scene_r).max(st.min_pixels * footprint);
+        let hi = (st.max_frac * scene_r).min(st.max_pixels * footprint).max(lo);
+        let mut r = g.harmonic_distance;
+        let mut trans = g.trans_grad;
+        if st.gradients {
+            // Limit R by the gradient: E changes by no more than itself within R.
+            let mean_e = crate::math::mean(g.irradiance);
+            let grad = (trans[0] + trans[1] + trans[2]) / 3.0;
+            if grad.length() > 0.0 && mean_e > 0.0 {
+                r = r.min(mean_e / grad.length());
+            }
+            // Gradients measured over geometry closer than the smallest radius are
+            // unreliable: scale them down (Křivánek et al.).
+            if g.min_distance.is_finite() && lo > 0.0 {
+                let s = (g.min_distance / lo).min(1.0);
+                for t in &mut trans {
+                    *t *= s;
+                }
+            }
+        }
+        CacheEntry {
+            pos: it.p,
+            normal: facing_shading_normal(it, wo),
+            irradiance: g.irradiance,
+            radius: r.clamp(lo, hi),
+            radius_unclamped: r,
+            radius_bounds: (lo, hi),
+            rot_grad: if st.gradients { g.rot_grad } else { [Vec3::ZERO; 3] },
+            trans_grad: if st.gradients { trans } else { [Vec3::ZERO; 3] },
+        }
     }
 
-    /// Deterministic prefill over the pixel centres (see the module docs).
+    /// Deterministic prefill over jittered pixel positions (see the module docs).
     pub fn prefill(&mut self, ctx: &PhotonContext, world: &World, quiet: bool) {
-        self.min_radius = self.min_frac * world.lights.scene_radius;
-        self.max_radius = self.max_frac * world.lights.scene_radius;
         let cam = &world.scene.camera;
         let (w, h) = (cam.width, cam.height);
+        // Angle subtended by one pixel at the image centre.
+        let pixel_angle = 2.0 * (0.5 * cam.fov_y_deg.to_radians()).tan() / h as f32;
         let strides = [16u32, 8, 4, 2, 1];
         let pb = crate::render::progress_bar(strides.len() as u64, quiet, "cache prefill");
         for s in strides {
@@ -180,14 +305,20 @@ impl IrradianceCache {
                 .par_iter()
                 .filter_map(|&(x, y)| {
                     let mut stats = TraversalStats::default();
-                    let key = ShadeKey(crate::math::hash_words(&[0xCAC4E, y as u64 * w as u64 + x as u64]));
-                    let ray = cam.generate_ray(x as f32 + 0.5, y as f32 + 0.5);
-                    let (it, wo, _) = ctx.follow_specular(world, ray, key, &mut stats)?;
+                    let pixel = y as u64 * w as u64 + x as u64;
+                    let key = ShadeKey(hash_words(&[0xCAC4E, pixel]));
+                    let j = hash_words(&[0x717E5, pixel]);
+                    let (jx, jy) = (u32_to_unit(j as u32), u32_to_unit((j >> 32) as u32));
+                    let ray = cam.generate_ray(x as f32 + jx, y as f32 + jy);
+                    let path = ctx.follow_specular_path(world, ray, key, &mut stats)?;
+                    let (it, wo) = (path.it, path.wo);
                     let bsdf = &world.material(&it).bsdf;
-                    if !cacheable(bsdf) || self.lookup(it.p, facing_normal(&it, wo)).is_some() {
+                    if !cacheable(bsdf) || self.lookup(it.p, facing_shading_normal(&it, wo)).is_some() {
                         return None;
                     }
-                    Some(self.entry_at(ctx, world, &it, wo, bsdf, key, &mut stats))
+                    let cos = wo.dot(it.sp.ng).abs().max(0.05);
+                    let footprint = path.length * pixel_angle / cos.sqrt();
+                    Some(self.entry_at(ctx, world, &it, wo, footprint, key, &mut stats))
                 })
                 .collect();
             self.insert(new);
@@ -198,10 +329,11 @@ impl IrradianceCache {
     }
 }
 
-/// The cache stores irradiance, which only describes Lambertian reflection.
+/// The cache stores irradiance, which describes the diffuse part of any surface that
+/// has one (the glossy lobe is gathered separately).
 #[inline]
 fn cacheable(bsdf: &Bsdf) -> bool {
-    matches!(bsdf, Bsdf::Lambertian(_))
+    !bsdf.is_delta() && bsdf.diffuse_albedo().max_element() > 0.0
 }
 
 impl Gather for IrradianceCache {
@@ -224,19 +356,19 @@ impl Gather for IrradianceCache {
         stats: &mut TraversalStats,
     ) -> Color {
         if !cacheable(bsdf) {
-            return ctx.final_gather(world, it, wo, bsdf, 0, key, stats).radiance;
+            return ctx.gathered_indirect(world, it, wo, bsdf, 0, key, stats);
         }
-        let e = match self.lookup(it.p, facing_normal(it, wo)) {
+        let e = match self.lookup(it.p, facing_shading_normal(it, wo)) {
             Some(e) => {
                 self.hits.fetch_add(1, Ordering::Relaxed);
                 e
             }
             None => {
                 self.misses.fetch_add(1, Ordering::Relaxed);
-                ctx.final_gather(world, it, wo, bsdf, 0, key, stats).irradiance
+                ctx.final_gather(world, it, wo, 0, key, stats).irradiance
             }
         };
-        bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e
+        bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e + ctx.glossy_gather(world, it, wo, bsdf, 0, key, stats)
     }
     fn counters(&self) -> Vec<(String, f64)> {
         vec![
@@ -273,9 +405,51 @@ mod tests {
         assert!(weight(&e, Vec3::new(0.05, 0.0, 0.05), Vec3::Z, 0.3) > 0.0);
     }
 
+    fn test_settings() -> CacheSettings {
+        CacheSettings::from_config(&RenderConfig::default())
+    }
+
+    /// Gradients extrapolate: an entry with ∇_t E = (1, 0, 0) read 0.1 to its right
+    /// gives E + 0.1; rotating the normal towards +x with ∇_r E = (0, 2, 0) adds
+    /// (N_i × N)·∇_r.
+    #[test]
+    fn extrapolation_by_gradients() {
+        let mut e = CacheEntry::new(Vec3::ZERO, Vec3::Z, Color::splat(1.0), 1.0);
+        e.trans_grad = [Vec3::X; 3];
+        e.rot_grad = [Vec3::new(0.0, 2.0, 0.0); 3];
+        let at = e.extrapolate(Vec3::new(0.1, 0.0, 0.0), Vec3::Z);
+        assert!((at.x - 1.1).abs() < 1e-6, "{at}");
+        let n = Vec3::new(0.1, 0.0, 1.0).normalize();
+        let rot = e.extrapolate(Vec3::ZERO, n);
+        assert!((rot.x - (1.0 + Vec3::Z.cross(n).y * 2.0)).abs() < 1e-6 && rot.x > 1.0, "{rot}");
+        // Never negative.
+        assert_eq!(e.extrapolate(Vec3::new(-5.0, 0.0, 0.0), Vec3::Z).x, 0.0);
+    }
+
+    /// Neighbour clamping: a large entry next to a small one is limited to the small
+    /// one's radius plus their distance, whatever the insertion order.
+    #[test]
+    fn neighbour_clamping_is_order_free() {
+        let big = CacheEntry::new(Vec3::ZERO, Vec3::Z, Color::ONE, 1.0);
+        let small = CacheEntry::new(Vec3::new(0.3, 0.0, 0.0), Vec3::Z, Color::ONE, 0.05);
+        let radii = |order: Vec<CacheEntry>| {
+            let mut c = IrradianceCache::new(test_settings());
+            c.insert(order);
+            let mut r: Vec<f32> = c.entries().iter().map(|e| e.radius).collect();
+            r.sort_by(f32::total_cmp);
+            r
+        };
+        let a = radii(vec![big, small]);
+        assert_eq!(a, radii(vec![small, big]));
+        assert!((a[1] - 0.35).abs() < 1e-6 && a[0] == 0.05, "{a:?}");
+        let mut off = IrradianceCache::new(CacheSettings { neighbor_clamp: false, ..test_settings() });
+        off.insert(vec![big, small]);
+        assert!(off.entries().iter().any(|e| e.radius == 1.0));
+    }
+
     #[test]
     fn lookup_interpolates_by_weight() {
-        let mut c = IrradianceCache::new(0.5, 0.01, 10.0);
+        let mut c = IrradianceCache::new(CacheSettings { tolerance: 0.5, neighbor_clamp: false, ..test_settings() });
         assert!(c.lookup(Vec3::ZERO, Vec3::Z).is_none());
         c.insert(vec![
             CacheEntry::new(Vec3::new(-0.1, 0.0, 0.0), Vec3::Z, Color::splat(1.0), 1.0),

@@ -9,6 +9,7 @@
 
 pub mod direct;
 pub mod final_gather;
+pub mod hemisphere;
 pub mod irradiance_cache;
 pub mod precomputed;
 
@@ -17,7 +18,7 @@ use crate::geometry::Ray;
 use crate::material::{Bsdf, TransportMode};
 use crate::math::{Color, Frame, cosine_hemisphere, hash_words, u32_to_unit};
 use crate::photon::PhotonMaps;
-use crate::photon::estimate::{self, EstimateParams, facing_normal};
+use crate::photon::estimate::{self, EstimateParams, facing_normal, facing_shading_normal};
 use crate::photon::kdtree::{KdTree, KnnHeap};
 use crate::photon::record::Photon;
 use crate::sampler::Sampler;
@@ -70,12 +71,25 @@ impl ShadeKey {
 /// Result of a final gather.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GatherResult {
-    /// Reflected indirect radiance towards wo.
-    pub radiance: Color,
-    /// Incident indirect irradiance (for the irradiance cache).
+    /// Incident indirect irradiance about the facing shading normal.
     pub irradiance: Color,
     /// Harmonic mean of the gather-ray hit distances (report eq. 11).
     pub harmonic_distance: f32,
+}
+
+/// The end of a camera or gather ray followed through mirrors and glass.
+#[derive(Clone, Copy, Debug)]
+pub struct SpecularPath {
+    /// First non-specular surface.
+    pub it: Interaction,
+    /// Direction towards the previous vertex.
+    pub wo: Vec3,
+    /// Accumulated specular weight.
+    pub weight: Color,
+    /// Distance to the first surface hit (specular or not).
+    pub first_dist: f32,
+    /// Length of the whole chain (for the pixel footprint at its end).
+    pub length: f32,
 }
 
 /// Photon maps plus everything the render pass shares between gather plug-ins.
@@ -96,6 +110,10 @@ pub struct PhotonContext {
     pub gather_samplers: Vec<Box<dyn Sampler>>,
     /// Rays per level.
     pub gather_counts: Vec<u32>,
+    /// Sampler of the glossy-lobe gather (sample count = `glossy_samples`).
+    pub glossy_sampler: Box<dyn Sampler>,
+    /// Rays sampled from the glossy lobe at glossy gathering points.
+    pub glossy_samples: u32,
     /// Direct-light sampler (sample count = direct_samples).
     pub direct_sampler: Box<dyn Sampler>,
     /// Shadow rays per shading point.
@@ -169,14 +187,22 @@ impl PhotonContext {
         with_heap(|h| estimate::radiance(&self.maps.caustic, it, wo, bsdf, &self.est_caustic, h))
     }
 
-    /// Radiance leaving a final-gather hit towards the gathering point: the nearest
-    /// precomputed irradiance (times the diffuse albedo / π) when enabled, else a full
-    /// estimate from all photons.
+    /// Radiance leaving a final-gather hit towards the gathering point. With
+    /// precomputed irradiance: the nearest precomputed point (on the side the hit is
+    /// seen from) times Kd/π for the diffuse part, plus a photon estimate with the
+    /// glossy lobe alone when the surface has one. Without: a full photon estimate.
     pub fn exitant_at_hit(&self, it: &Interaction, wo: Vec3, bsdf: &Bsdf) -> Color {
         if let Some(pre) = &self.precomputed {
             let n = facing_normal(it, wo);
-            if let Some(e) = precomputed::lookup(pre, it.p, n, self.precomputed_radius) {
-                return bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e;
+            let thickness = self.est_global.disc * self.precomputed_radius;
+            if let Some(e) = precomputed::lookup(pre, it.p, n, self.precomputed_radius, thickness) {
+                let mut l = bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e;
+                if bsdf.has_glossy() {
+                    l += with_heap(|h| {
+                        estimate::radiance_with(&self.global, it, wo, &self.est_global, h, |wi| bsdf.eval_glossy(&it.sp, wo, wi))
+                    });
+                }
+                return l;
             }
         }
         with_heap(|h| estimate::radiance(&self.global, it, wo, bsdf, &self.est_global, h))
@@ -188,17 +214,28 @@ impl PhotonContext {
     pub fn follow_specular(
         &self,
         world: &World,
-        mut ray: Ray,
+        ray: Ray,
         key: ShadeKey,
         stats: &mut TraversalStats,
     ) -> Option<(Interaction, Vec3, Color)> {
+        self.follow_specular_path(world, ray, key, stats).map(|p| (p.it, p.wo, p.weight))
+    }
+
+    /// [`PhotonContext::follow_specular`] with the chain's distances.
+    pub fn follow_specular_path(&self, world: &World, mut ray: Ray, key: ShadeKey, stats: &mut TraversalStats) -> Option<SpecularPath> {
         let mut w = Color::ONE;
+        let (mut first_dist, mut length) = (0.0f32, 0.0f32);
         for d in 0..MAX_SPECULAR {
             let it = world.intersect(&ray, stats)?;
+            let seg = it.t * ray.d.length();
+            if d == 0 {
+                first_dist = seg;
+            }
+            length += seg;
             let bsdf = &world.material(&it).bsdf;
             let wo = -ray.d.normalize();
             if !bsdf.is_delta() {
-                return Some((it, wo, w));
+                return Some(SpecularPath { it, wo, weight: w, first_dist, length });
             }
             let (br, n) = bsdf.specular_branches(&it.sp, wo, TransportMode::Radiance);
             let (wi, bw) = pick_branch(&br[..n], key.uniform(d as u64))?;
@@ -208,11 +245,58 @@ impl PhotonContext {
         None
     }
 
-    /// Final gather at `it` with the rays of `level` (0 = first level). Hits are
-    /// shaded by [`PhotonContext::exitant_at_hit`] on the last level, by a full
-    /// direct + caustic + gather on earlier ones.
-    #[allow(clippy::too_many_arguments)]
+    /// Radiance arriving along a gather ray of `level`, shaded where it lands:
+    /// a photon-map lookup ([`PhotonContext::exitant_at_hit`]) on the last level, a
+    /// full direct + caustic + gather on earlier ones. Also returns the distance to
+    /// the first surface (∞ when the ray escapes).
+    pub fn gather_ray(&self, world: &World, ray: Ray, level: usize, key: ShadeKey, stats: &mut TraversalStats) -> (Color, f32) {
+        let Some(sp) = self.follow_specular_path(world, ray, key, stats) else { return (Color::ZERO, f32::INFINITY) };
+        let hb = &world.material(&sp.it).bsdf;
+        let l = if level + 1 < self.gather_counts.len() {
+            self.shade(world, &sp.it, sp.wo, hb, level + 1, key, stats, false)
+        } else {
+            self.exitant_at_hit(&sp.it, sp.wo, hb)
+        };
+        (l * sp.weight, sp.first_dist)
+    }
+
+    /// Final gather of the irradiance at `it` with the rays of `level` (0 = first
+    /// level): directions cosine-distributed about the shading normal on the viewer's
+    /// side (as `path` samples a Lambertian surface); directions below the geometric
+    /// surface carry no light.
     pub fn final_gather(
+        &self,
+        world: &World,
+        it: &Interaction,
+        wo: Vec3,
+        level: usize,
+        key: ShadeKey,
+        stats: &mut TraversalStats,
+    ) -> GatherResult {
+        let n = self.gather_counts[level].max(1);
+        let mut s = self.gather_samplers[level].clone_box();
+        let frame = Frame::new(facing_shading_normal(it, wo));
+        let (mut irr, mut inv_d) = (Color::ZERO, 0.0f32);
+        for j in 0..n {
+            s.start(key.0, j as u64);
+            let wi = frame.to_world(cosine_hemisphere(s.next_2d()));
+            if wi.dot(it.sp.ng) * wo.dot(it.sp.ng) <= 0.0 {
+                continue;
+            }
+            let (l, dist) = self.gather_ray(world, world.spawn(it, wi), level, key.child(j as u64 + 1), stats);
+            inv_d += 1.0 / dist.max(1e-6);
+            irr += l;
+        }
+        // Cosine-weighted: E ≈ π/N Σ L. Rays that escape count as infinitely far.
+        let harmonic_distance = if inv_d > 0.0 { n as f32 / inv_d } else { f32::INFINITY };
+        GatherResult { irradiance: irr * (std::f32::consts::PI / n as f32), harmonic_distance }
+    }
+
+    /// Glossy part of the reflected indirect radiance: `glossy_samples` rays drawn
+    /// from the glossy lobe alone, each shaded as a final-gather ray. Zero for
+    /// surfaces without a glossy lobe.
+    #[allow(clippy::too_many_arguments)]
+    pub fn glossy_gather(
         &self,
         world: &World,
         it: &Interaction,
@@ -221,38 +305,42 @@ impl PhotonContext {
         level: usize,
         key: ShadeKey,
         stats: &mut TraversalStats,
-    ) -> GatherResult {
-        let n = self.gather_counts[level].max(1);
-        let mut s = self.gather_samplers[level].clone_box();
-        let nrm = facing_normal(it, wo);
-        let frame = Frame::new(nrm);
-        let (mut rad, mut irr, mut inv_d, mut hits) = (Color::ZERO, Color::ZERO, 0.0f32, 0u32);
+    ) -> Color {
+        if !bsdf.has_glossy() {
+            return Color::ZERO;
+        }
+        let n = self.glossy_samples.max(1);
+        let mut s = self.glossy_sampler.clone_box();
+        let key = key.child(0x6105);
+        let mut sum = Color::ZERO;
         for j in 0..n {
             s.start(key.0, j as u64);
-            let wi = frame.to_world(cosine_hemisphere(s.next_2d()));
-            let ray = world.spawn(it, wi);
-            let sub = key.child(j as u64 + 1);
-            let Some((hit, hwo, w)) = self.follow_specular(world, ray, sub, stats) else {
-                continue;
-            };
-            let dist = (hit.p - it.p).length();
-            inv_d += 1.0 / dist.max(1e-6);
-            hits += 1;
-            let hb = &world.material(&hit).bsdf;
-            let l = if level + 1 < self.gather_counts.len() {
-                self.shade(world, &hit, hwo, hb, level + 1, sub, stats, false)
-            } else {
-                self.exitant_at_hit(&hit, hwo, hb)
-            } * w;
-            // Cosine-weighted: ∫ f L cos dω ≈ π/N Σ f L, and E ≈ π/N Σ L.
-            rad += bsdf.eval(&it.sp, wo, wi) * l;
-            irr += l;
+            let Some((wi, w)) = bsdf.sample_glossy(&it.sp, wo, s.next_2d()) else { continue };
+            let (l, _) = self.gather_ray(world, world.spawn(it, wi), level, key.child(j as u64 + 1), stats);
+            sum += w * l;
         }
-        let scale = std::f32::consts::PI / n as f32;
-        // Rays that escape count as infinitely far (they add nothing to 1/d).
-        let harmonic_distance = if inv_d > 0.0 { n as f32 / inv_d } else { f32::INFINITY };
-        let _ = hits;
-        GatherResult { radiance: rad * scale, irradiance: irr * scale, harmonic_distance }
+        sum / n as f32
+    }
+
+    /// Indirect radiance towards `wo` by final gathering: Kd/π times the gathered
+    /// irradiance, plus the glossy lobe's own gather.
+    #[allow(clippy::too_many_arguments)]
+    pub fn gathered_indirect(
+        &self,
+        world: &World,
+        it: &Interaction,
+        wo: Vec3,
+        bsdf: &Bsdf,
+        level: usize,
+        key: ShadeKey,
+        stats: &mut TraversalStats,
+    ) -> Color {
+        let kd = bsdf.diffuse_albedo();
+        let mut l = Color::ZERO;
+        if kd.max_element() > 0.0 {
+            l += kd * std::f32::consts::FRAC_1_PI * self.final_gather(world, it, wo, level, key, stats).irradiance;
+        }
+        l + self.glossy_gather(world, it, wo, bsdf, level, key, stats)
     }
 
     /// Full shading of a non-specular point at gather `level`: direct light, caustics
@@ -269,7 +357,7 @@ impl PhotonContext {
         stats: &mut TraversalStats,
         with_direct: bool,
     ) -> Color {
-        let mut l = self.caustic(it, wo, bsdf) + self.final_gather(world, it, wo, bsdf, level, key, stats).radiance;
+        let mut l = self.caustic(it, wo, bsdf) + self.gathered_indirect(world, it, wo, bsdf, level, key, stats);
         if with_direct || level > 0 {
             l += self.direct_light(world, it, wo, bsdf, key.child(0xD1), stats);
         }

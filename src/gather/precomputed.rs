@@ -47,10 +47,13 @@ pub fn precompute(global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) 
 }
 
 /// Irradiance of the nearest precomputed point within `radius` whose normal agrees
-/// with `n`.
-pub fn lookup(tree: &KdTree<IrradiancePoint>, p: Vec3, n: Vec3, radius: f32) -> Option<Color> {
+/// with `n` (so it was lit from the side the query looks from) and that lies within
+/// `thickness` of the query's tangent plane — without the plane test a parallel
+/// surface a little above or below (the other side of a thin slab, a lamp over a
+/// roof) lends its irradiance through the wall.
+pub fn lookup(tree: &KdTree<IrradiancePoint>, p: Vec3, n: Vec3, radius: f32, thickness: f32) -> Option<Color> {
     super::with_heap(|h| {
-        tree.knn(p, 1, radius * radius, h, &|q: &IrradiancePoint, _| q.normal.dot(n) >= 0.7);
+        tree.knn(p, 1, radius * radius, h, &|q: &IrradiancePoint, pos: Vec3| q.normal.dot(n) >= 0.7 && (pos - p).dot(n).abs() <= thickness);
         h.items.first().map(|&(_, i)| tree.points[i as usize].irradiance)
     })
 }
@@ -73,6 +76,6 @@ impl Gather for PrecomputedGather {
         key: ShadeKey,
         stats: &mut TraversalStats,
     ) -> Color {
-        ctx.final_gather(world, it, wo, bsdf, 0, key, stats).radiance
+        ctx.gathered_indirect(world, it, wo, bsdf, 0, key, stats)
     }
 }

@@ -12,15 +12,20 @@ use super::Integrator;
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::gather::{
-    Gather, MAX_SPECULAR, PhotonContext, SPLIT_DEPTH, ShadeKey, direct::DirectVisualisation, final_gather::FinalGather,
-    irradiance_cache::IrradianceCache, pick_branch, precomputed, precomputed::PrecomputedGather, with_heap,
+    Gather, MAX_SPECULAR, PhotonContext, SPLIT_DEPTH, ShadeKey,
+    direct::DirectVisualisation,
+    final_gather::FinalGather,
+    irradiance_cache::{CacheSettings, IrradianceCache},
+    pick_branch, precomputed,
+    precomputed::PrecomputedGather,
+    with_heap,
 };
 use crate::geometry::Ray;
 use crate::material::TransportMode;
 use crate::math::Color;
 use crate::photon::estimate::{self, EstimateParams, Filter};
 use crate::photon::kdtree::KdTree;
-use crate::photon::{PhotonPassSettings, build_maps};
+use crate::photon::{self, PhotonPassSettings, build_maps};
 use crate::registry;
 use crate::rr::RussianRoulette;
 use crate::sampler::Sampler;
@@ -29,6 +34,10 @@ use anyhow::{Result, bail};
 use glam::Vec3;
 use std::collections::BTreeMap;
 use std::time::Instant;
+
+/// Default maximum search radius, in units of the radius that holds k photons at the
+/// mean photon density over the lit surfaces.
+pub const DENSITY_RADII: f32 = 3.0;
 
 /// What the integrator writes into the image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,8 +101,12 @@ pub fn validate(cfg: &RenderConfig) -> Result<()> {
     if cfg.photons == 0 && cfg.caustic_photons == 0 && cfg.emit_photons.is_none() {
         bail!("photons and caustic_photons are both 0: nothing to store");
     }
-    if cfg.gather_bounces == 0 || cfg.gather_samples == 0 {
-        bail!("gather_bounces and gather_samples must be at least 1");
+    if cfg.gather_bounces == 0 || cfg.gather_samples == 0 || cfg.glossy_samples == 0 || cfg.ic_samples == 0 {
+        bail!("gather_bounces, gather_samples, glossy_samples and ic_samples must be at least 1");
+    }
+    let bad_px = |v: f32| v.is_nan() || v < 0.0 || v.is_infinite();
+    if bad_px(cfg.ic_min_pixels) || bad_px(cfg.ic_max_pixels) || cfg.ic_max_pixels < cfg.ic_min_pixels {
+        bail!("irradiance cache: need 0 <= ic_min_pixels <= ic_max_pixels (finite), got {} and {}", cfg.ic_min_pixels, cfg.ic_max_pixels);
     }
     if cfg.k == 0 || cfg.caustic_k == 0 {
         bail!("k and caustic_k must be at least 1");
@@ -129,7 +142,7 @@ fn make_gather(cfg: &RenderConfig) -> Result<Box<dyn Gather>> {
         "direct" => Box::new(DirectVisualisation),
         "final_gather" => Box::new(FinalGather),
         "precomputed" => Box::new(PrecomputedGather),
-        "irradiance_cache" => Box::new(IrradianceCache::new(cfg.ic_tolerance, cfg.ic_min_radius, cfg.ic_max_radius)),
+        "irradiance_cache" => Box::new(IrradianceCache::new(CacheSettings::from_config(cfg))),
         other => bail!("unknown gather `{other}` (known: {})", crate::gather::GATHERS.join(", ")),
     })
 }
@@ -205,8 +218,6 @@ impl Integrator for PhotonIntegrator {
     fn preprocess(&mut self, world: &World) -> Result<()> {
         let cfg = &self.cfg;
         let r_scene = world.lights.scene_radius;
-        let max_radius = cfg.max_radius.unwrap_or(0.1 * r_scene);
-        let caustic_radius = cfg.caustic_max_radius.unwrap_or(0.025 * r_scene);
         let filter = Filter::parse(&cfg.filter).map_err(anyhow::Error::msg)?;
         let emit_sampler = registry::make_sampler(&cfg.sampler, cfg.seed, cfg.emit_photons)?;
         let t0 = Instant::now();
@@ -223,6 +234,19 @@ impl Integrator for PhotonIntegrator {
         }
         self.times.insert("photon_pass_s".into(), t0.elapsed().as_secs_f64());
         self.times.insert("photon_trace_s".into(), t0.elapsed().as_secs_f64() - maps.build_s);
+        // Default search radii from the photons themselves: DENSITY_RADII × the radius
+        // that would hold k photons at the mean density over the lit surfaces (so
+        // they follow the photon count and the scene's scale; a region DENSITY_RADII²
+        // times darker than average is the first to be estimated from fewer than k).
+        let from_density = |k: u32, stored: usize, area: f64, fallback: f32| {
+            photon::mean_density_radius(k as usize, stored, area).map_or(fallback, |r| (DENSITY_RADII * r).min(r_scene))
+        };
+        let max_radius = cfg.max_radius.unwrap_or_else(|| from_density(cfg.k, maps.global_len(), maps.lit_area_global, 0.1 * r_scene));
+        let caustic_radius = cfg
+            .caustic_max_radius
+            .unwrap_or_else(|| from_density(cfg.caustic_k, maps.caustic.len(), maps.lit_area_caustic, 0.025 * r_scene));
+        self.times.insert("max_radius".into(), max_radius as f64);
+        self.times.insert("caustic_max_radius".into(), caustic_radius as f64);
         let t1 = Instant::now();
         let t_global = Instant::now();
         let global = KdTree::merged(&[&maps.direct, &maps.indirect, &maps.caustic]);
@@ -252,6 +276,8 @@ impl Integrator for PhotonIntegrator {
             precomputed_radius: max_radius,
             gather_samplers,
             gather_counts: counts,
+            glossy_sampler: registry::make_sampler(&cfg.sampler, cfg.seed ^ 0x6105_5EED, Some(cfg.glossy_samples as u64))?,
+            glossy_samples: cfg.glossy_samples,
             direct_sampler,
             direct_samples: cfg.direct_samples,
         };

@@ -193,6 +193,32 @@ impl Bsdf {
         }
     }
 
+    /// The non-diffuse, non-delta part of f (the glossy lobe); zero for Lambertian
+    /// and specular materials. `eval = diffuse_albedo/π + eval_glossy` off delta lobes.
+    #[inline]
+    pub fn eval_glossy(&self, sp: &ShadingPoint, wo: Vec3, wi: Vec3) -> Color {
+        match self {
+            Bsdf::Glossy(m) => m.eval_lobe(sp, wo, wi),
+            _ => Color::ZERO,
+        }
+    }
+
+    /// True when the BSDF has a glossy lobe (Phong with Ks > 0).
+    #[inline]
+    pub fn has_glossy(&self) -> bool {
+        matches!(self, Bsdf::Glossy(m) if m.ks.max_element() > 0.0)
+    }
+
+    /// Samples the glossy lobe alone: wi and f_glossy·cos/pdf. `None` when there is
+    /// no glossy lobe or the sample falls below the surface.
+    #[inline]
+    pub fn sample_glossy(&self, sp: &ShadingPoint, wo: Vec3, u: [f32; 2]) -> Option<(Vec3, Color)> {
+        match self {
+            Bsdf::Glossy(m) => m.sample_lobe(sp, wo, u),
+            _ => None,
+        }
+    }
+
     /// Diffuse part's albedo (what a photon map can represent): Kd for Lambertian
     /// and glossy, zero for specular materials.
     pub fn diffuse_albedo(&self) -> Color {

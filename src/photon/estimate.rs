@@ -102,9 +102,30 @@ pub fn gather(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, heap
     map.knn(p, prm.k, prm.max_radius * prm.max_radius, heap, &filter)
 }
 
+/// The shading normal turned to the viewer's side (the side `wo` leaves on).
+#[inline]
+pub fn facing_shading_normal(it: &Interaction, wo: Vec3) -> Vec3 {
+    if wo.dot(it.sp.ng) >= 0.0 { it.sp.ns() } else { -it.sp.ns() }
+}
+
 /// Reflected radiance towards `wo` at `it` from the photons of `map` (eq. 10),
 /// evaluating the BSDF per photon.
 pub fn radiance(map: &KdTree<Photon>, it: &Interaction, wo: Vec3, bsdf: &Bsdf, prm: &EstimateParams, heap: &mut KnnHeap) -> Color {
+    radiance_with(map, it, wo, prm, heap, |wi| bsdf.eval(&it.sp, wo, wi))
+}
+
+/// Radiance estimate with an arbitrary reflectance `f(wi)` per photon (e.g. only the
+/// glossy lobe, when the diffuse part comes from precomputed irradiance). Only
+/// photons that arrived on the side the query looks from count: their stored normal
+/// (the geometric normal on their arrival side) must agree with the one facing `wo`.
+pub fn radiance_with(
+    map: &KdTree<Photon>,
+    it: &Interaction,
+    wo: Vec3,
+    prm: &EstimateParams,
+    heap: &mut KnnHeap,
+    f: impl Fn(Vec3) -> Color,
+) -> Color {
     if map.is_empty() {
         return Color::ZERO;
     }
@@ -116,8 +137,7 @@ pub fn radiance(map: &KdTree<Photon>, it: &Interaction, wo: Vec3, bsdf: &Bsdf, p
     let mut sum = Color::ZERO;
     for &(d2, i) in &heap.items {
         let ph = &map.points[i as usize];
-        let f = bsdf.eval(&it.sp, wo, ph.direction());
-        sum += f * ph.power() * prm.filter.weight(d2 / r2);
+        sum += f(ph.direction()) * ph.power() * prm.filter.weight(d2 / r2);
     }
     sum / (prm.filter_norm * std::f32::consts::PI * r2)
 }

@@ -102,6 +102,39 @@ pub struct PhotonMaps {
     pub warnings: Vec<String>,
     /// Seconds spent building the three kd-trees (part of the pass).
     pub build_s: f64,
+    /// Area of the triangles holding at least one stored global photon.
+    pub lit_area_global: f64,
+    /// Area of the triangles holding at least one stored caustic photon.
+    pub lit_area_caustic: f64,
+}
+
+impl PhotonMaps {
+    /// Photons stored in the direct + indirect maps.
+    pub fn global_len(&self) -> usize {
+        self.direct.len() + self.indirect.len()
+    }
+}
+
+/// Total area of the distinct triangles the photons landed on.
+fn lit_area(world: &World, photons: &[RawPhoton]) -> f64 {
+    let mut hit = vec![false; world.scene.triangles.len()];
+    for p in photons {
+        hit[p.tri as usize] = true;
+    }
+    hit.iter()
+        .enumerate()
+        .filter(|(_, h)| **h)
+        .map(|(i, _)| {
+            let t = &world.scene.triangles[i];
+            0.5 * ((t[1] - t[0]).as_dvec3().cross((t[2] - t[0]).as_dvec3())).length()
+        })
+        .sum()
+}
+
+/// The radius that holds `k` photons where `stored` photons spread evenly over
+/// `area` (mean density); `None` without photons.
+pub fn mean_density_radius(k: usize, stored: usize, area: f64) -> Option<f32> {
+    (stored > 0 && area > 0.0).then(|| (k as f64 * area / (std::f64::consts::PI * stored as f64)).sqrt() as f32)
 }
 
 /// A photon before normalisation by the emitted count.
@@ -117,6 +150,8 @@ pub struct RawPhoton {
     pub dir: Vec3,
     /// Surface normal on the arrival side.
     pub normal: Vec3,
+    /// Triangle it landed on.
+    pub tri: u32,
 }
 
 /// Emission sampler dimensions: light choice, position (2), direction (2); then
@@ -152,7 +187,7 @@ pub fn trace_path(
         let wo = -ray.d;
         if !bsdf.is_delta() {
             let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
-            out.push(RawPhoton { kind: state.map(), pos: it.p, power, dir: wo, normal: n });
+            out.push(RawPhoton { kind: state.map(), pos: it.p, power, dir: wo, normal: n, tri: it.tri });
         }
         if depth >= max_depth {
             break;
@@ -284,6 +319,7 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
         || rayon::join(|| build(&global, Some(MapKind::Indirect), n_global), || build(&caustic, None, n_caustic)),
     );
     let build_s = t_build.elapsed().as_secs_f64();
+    let (lit_area_global, lit_area_caustic) = (lit_area(world, &global), lit_area(world, &caustic));
     PhotonMaps {
         direct,
         indirect,
@@ -294,6 +330,8 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
         rays,
         warnings,
         build_s,
+        lit_area_global,
+        lit_area_caustic,
     }
 }
 

@@ -1,22 +1,29 @@
 //! Scenes generated in code: `cornell` (Cornell University's published box),
+//! `cornell-glass` (Jensen's box), `cornell-glossy` (glossy floor, sphere and box),
+//! `cornell-contact` (a cube on the floor and a sphere touching a corner),
+//! `leaky-box` (a closed box of zero-thickness walls lit only from outside),
 //! `furnace` (a closed emitting diffuse sphere, for energy checks) and
 //! `displaced-sphere` (≥ 1 M triangles, for acceleration benchmarks).
 
 use super::{Face, MeshData, Placement, Scene};
 use crate::camera::Camera;
-use crate::material::{Bsdf, Dielectric, Material, Mirror};
+use crate::material::{Bsdf, Dielectric, Glossy, Material, Mirror};
 use crate::math::Color;
 use anyhow::{Result, bail};
 use glam::Vec3;
 
 /// Names of the built-in scenes.
-pub const BUILTINS: &[&str] = &["cornell", "cornell-glass", "furnace", "displaced-sphere"];
+pub const BUILTINS: &[&str] =
+    &["cornell", "cornell-glass", "cornell-glossy", "cornell-contact", "leaky-box", "furnace", "displaced-sphere"];
 
 /// Builds a built-in scene by name.
 pub fn builtin(name: &str) -> Result<Scene> {
     match name {
         "cornell" => Ok(cornell()),
         "cornell-glass" => Ok(cornell_glass()),
+        "cornell-glossy" => Ok(cornell_glossy()),
+        "cornell-contact" => Ok(cornell_contact()),
+        "leaky-box" => Ok(leaky_box()),
         "furnace" => Ok(furnace(0.5, 1.0, 24)),
         "displaced-sphere" => Ok(displaced_sphere(710)),
         _ => bail!("unknown built-in scene `{name}` (known: {})", BUILTINS.join(", ")),
@@ -75,21 +82,27 @@ pub fn cornell_glass() -> Scene {
 }
 
 fn cornell_with(blocks: bool) -> Scene {
+    cornell_room(blocks, Material::diffuse("white", CORNELL_WHITE))
+}
+
+const CORNELL_WHITE: Color = Color::new(0.725, 0.71, 0.68);
+
+fn cornell_room(blocks: bool, floor: Material) -> Scene {
     let mut m = MeshData {
         materials: vec![
-            Material::diffuse("white", Color::new(0.725, 0.71, 0.68)),
+            Material::diffuse("white", CORNELL_WHITE),
             Material::diffuse("red", Color::new(0.63, 0.065, 0.05)),
             Material::diffuse("green", Color::new(0.14, 0.45, 0.091)),
             Material { emission: Color::new(17.0, 12.0, 4.0), ..Material::diffuse("light", Color::splat(0.78)) },
+            floor,
         ],
         ..Default::default()
     };
-    let (white, red, green, light) = (0, 1, 2, 3);
+    let (white, red, green, light, floor) = (0, 1, 2, 3, 4);
+    add_quads(&mut m, &[[[552.8, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 559.2], [549.6, 0.0, 559.2]]], floor);
     add_quads(
         &mut m,
         &[
-            // floor
-            [[552.8, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 559.2], [549.6, 0.0, 559.2]],
             // ceiling
             [[556.0, 548.8, 0.0], [556.0, 548.8, 559.2], [0.0, 548.8, 559.2], [0.0, 548.8, 0.0]],
             // back wall
@@ -113,7 +126,11 @@ fn cornell_with(blocks: bool) -> Scene {
 }
 
 fn add_blocks(m: &mut MeshData, white: u32) {
-    // Short block.
+    add_short_block(m, white);
+    add_tall_block(m, white);
+}
+
+fn add_short_block(m: &mut MeshData, material: u32) {
     add_quads(
         m,
         &[
@@ -123,9 +140,11 @@ fn add_blocks(m: &mut MeshData, white: u32) {
             [[82.0, 0.0, 225.0], [82.0, 165.0, 225.0], [130.0, 165.0, 65.0], [130.0, 0.0, 65.0]],
             [[240.0, 0.0, 272.0], [240.0, 165.0, 272.0], [82.0, 165.0, 225.0], [82.0, 0.0, 225.0]],
         ],
-        white,
+        material,
     );
-    // Tall block.
+}
+
+fn add_tall_block(m: &mut MeshData, white: u32) {
     add_quads(
         m,
         &[
@@ -137,6 +156,96 @@ fn add_blocks(m: &mut MeshData, white: u32) {
         ],
         white,
     );
+}
+
+/// A glossy Cornell box: the published room with a glossy floor (Kd 0.35, Ks 0.35,
+/// Phong exponent 40), the short block glossy (Kd 0.45, Ks 0.25, exponent 20) and a
+/// glossy sphere of radius 100 mm at the back left (Kd 0.2/0.4/0.5, Ks 0.45,
+/// exponent 60), all energy-conserving. Exercises the glossy lobes at camera hits
+/// and at final-gather hits.
+pub fn cornell_glossy() -> Scene {
+    let glossy = |name: &str, kd: Color, ks: f32, exponent: f32| Material {
+        name: name.into(),
+        bsdf: Bsdf::Glossy(Glossy { kd, ks: Color::splat(ks), exponent }),
+        emission: Color::ZERO,
+    };
+    let mut s = cornell_room(false, glossy("glossy-floor", Color::new(0.36, 0.35, 0.34), 0.35, 40.0));
+    s.name = "cornell-glossy".into();
+    let mut block = MeshData { materials: vec![glossy("glossy-box", Color::new(0.45, 0.44, 0.42), 0.25, 20.0)], ..Default::default() };
+    add_short_block(&mut block, 0);
+    s.add_mesh(&block, &Placement::default(), None).expect("block geometry is valid");
+    let mut sphere = smooth_sphere(48);
+    sphere.materials.push(glossy("glossy-sphere", Color::new(0.2, 0.4, 0.5), 0.45, 60.0));
+    let place = Placement { scale: Vec3::splat(100.0), rotate_y_deg: 0.0, translate: Vec3::new(390.0, 100.0, 360.0) };
+    s.add_mesh(&sphere, &place, None).expect("sphere geometry is valid");
+    s
+}
+
+/// Contacts and corners: the published room with a white cube of edge 150 mm resting
+/// on the floor (rotated 30°, faces meeting the floor along its whole edge) and a
+/// white sphere of radius 90 mm touching the floor, the back wall and the green
+/// wall. Contact shadows are where an irradiance cache interpolates across a
+/// discontinuity.
+pub fn cornell_contact() -> Scene {
+    let mut s = cornell_with(false);
+    s.name = "cornell-contact".into();
+    let mut cube = MeshData { materials: vec![Material::diffuse("white", CORNELL_WHITE)], ..Default::default() };
+    add_quads(&mut cube, &unit_cube_quads(), 0);
+    let place = Placement { scale: Vec3::splat(75.0), rotate_y_deg: 30.0, translate: Vec3::new(370.0, 75.0, 200.0) };
+    s.add_mesh(&cube, &place, None).expect("cube geometry is valid");
+    let mut sphere = smooth_sphere(48);
+    sphere.materials.push(Material::diffuse("white", CORNELL_WHITE));
+    let r = 90.0;
+    let place = Placement { scale: Vec3::splat(r), rotate_y_deg: 0.0, translate: Vec3::new(r, r, 559.2 - r) };
+    s.add_mesh(&sphere, &place, None).expect("sphere geometry is valid");
+    s
+}
+
+/// A closed box of zero-thickness walls (one quad each, both sides reflect, as the
+/// scene contract says) lit only from outside: an area light above the roof facing
+/// down, under a white canopy that sends light back onto the roof. Nothing reaches
+/// the inside, so the correct image is black apart from the walls' faint edges where
+/// floating point lets a path through (`path` gives about 1e-7). The camera sits on
+/// the box's axis, so pixel centres fall exactly on the edges between walls.
+pub fn leaky_box() -> Scene {
+    let mut m = MeshData {
+        materials: vec![
+            Material::diffuse("wall", Color::splat(0.7)),
+            Material { emission: Color::splat(20.0), ..Material::diffuse("lamp", Color::splat(0.5)) },
+            Material::diffuse("canopy", Color::splat(0.8)),
+        ],
+        ..Default::default()
+    };
+    add_quads(&mut m, &unit_cube_quads().map(|q| q.map(|p| [0.5 * (p[0] + 1.0), 0.5 * (p[1] + 1.0), 0.5 * (p[2] + 1.0)])), 0);
+    // Lamp facing down (clockwise seen from above) and a canopy facing down above it.
+    add_quads(&mut m, &[[[0.3, 1.2, 0.3], [0.7, 1.2, 0.3], [0.7, 1.2, 0.7], [0.3, 1.2, 0.7]]], 1);
+    add_quads(&mut m, &[[[-1.0, 1.6, -1.0], [2.0, 1.6, -1.0], [2.0, 1.6, 2.0], [-1.0, 1.6, 2.0]]], 2);
+    let cam = Camera::new(Vec3::new(0.5, 0.5, 0.95), Vec3::new(0.5, 0.5, 0.0), Vec3::Y, 80.0, 64, 64).expect("valid camera");
+    let mut s = Scene::new("leaky-box", cam);
+    s.add_mesh(&m, &Placement::default(), None).expect("box geometry is valid");
+    s
+}
+
+/// The six faces of the cube [-1, 1]³, wound outward.
+fn unit_cube_quads() -> [[[f32; 3]; 4]; 6] {
+    [
+        [[-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]],
+        [[1.0, -1.0, -1.0], [-1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [1.0, 1.0, -1.0]],
+        [[1.0, -1.0, 1.0], [1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [1.0, 1.0, 1.0]],
+        [[-1.0, -1.0, -1.0], [-1.0, -1.0, 1.0], [-1.0, 1.0, 1.0], [-1.0, 1.0, -1.0]],
+        [[-1.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 1.0, -1.0], [-1.0, 1.0, -1.0]],
+        [[-1.0, -1.0, -1.0], [1.0, -1.0, -1.0], [1.0, -1.0, 1.0], [-1.0, -1.0, 1.0]],
+    ]
+}
+
+/// A unit UV sphere with vertex normals (smooth shading).
+fn smooth_sphere(n: u32) -> MeshData {
+    let mut sphere = uv_sphere(n, true, |_, _| 1.0);
+    sphere.normals = sphere.positions.iter().map(|p| p.normalize()).collect();
+    for f in &mut sphere.faces {
+        f.n = Some(f.v);
+    }
+    sphere
 }
 
 /// Sphere triangle mesh: an n × n UV grid (n rings of n segments; the pole triangles
@@ -213,6 +322,25 @@ mod tests {
             assert!(s.geometric_normal(i).y < -0.99);
         }
         assert!(s.validate().is_ok());
+    }
+
+    #[test]
+    fn new_scenes_are_valid() {
+        for name in ["cornell-glossy", "cornell-contact", "leaky-box"] {
+            let s = builtin(name).unwrap();
+            assert!(s.validate().is_ok(), "{name}");
+        }
+        // The cube faces outward.
+        let q = unit_cube_quads();
+        for quad in q {
+            let (a, b, c) = (Vec3::from(quad[0]), Vec3::from(quad[1]), Vec3::from(quad[2]));
+            let centre = (a + c) * 0.5;
+            assert!((b - a).cross(c - a).dot(centre) > 0.0);
+        }
+        // The leaky box's lamp faces down.
+        let s = leaky_box();
+        let lamp: Vec<u32> = (0..s.triangles.len() as u32).filter(|&i| s.material(i).is_emitter()).collect();
+        assert!(lamp.iter().all(|&i| s.geometric_normal(i).y < -0.99));
     }
 
     #[test]
