@@ -161,6 +161,24 @@ pub struct RenderArgs {
     /// Photon integrator: largest cache radius (fraction of the scene radius).
     #[arg(long)]
     pub ic_max_radius: Option<f32>,
+    /// sppm / ppm: maximum number of passes (default 16, unbounded with --time-limit).
+    #[arg(long)]
+    pub passes: Option<u32>,
+    /// sppm / ppm: photon paths emitted per pass (sppm default 131072).
+    #[arg(long)]
+    pub photons_per_pass: Option<u64>,
+    /// sppm / ppm: radius-reduction parameter alpha in (0, 1] (default 2/3).
+    #[arg(long)]
+    pub alpha: Option<f32>,
+    /// sppm / ppm: stop after the pass that crosses this many seconds.
+    #[arg(long)]
+    pub time_limit: Option<f64>,
+    /// sppm: initial per-pixel radius in scene units (default 0.02 x scene radius).
+    #[arg(long)]
+    pub sppm_radius: Option<f32>,
+    /// sppm: direct light by `trace` (shadow rays, default) or `photons`.
+    #[arg(long)]
+    pub sppm_direct: Option<String>,
     /// Extra images (photon integrator): direct, caustic, indirect, photons-direct,
     /// photons-indirect, photons-caustic, cache. Repeat or comma-separate.
     #[arg(long, value_delimiter = ',')]
@@ -208,6 +226,11 @@ impl RenderArgs {
         }
         set!(photons, caustic_photons, max_emitted, gather, gather_samples, gather_bounces, precomputed_irradiance, precompute_stride, k);
         set!(caustic_k, filter, disc, direct_samples, direct_sampler, ic_tolerance, ic_min_radius, ic_max_radius);
+        set!(alpha, sppm_direct);
+        c.passes = self.passes.or(c.passes);
+        c.photons_per_pass = self.photons_per_pass.or(c.photons_per_pass);
+        c.time_limit = self.time_limit.or(c.time_limit);
+        c.sppm_radius = self.sppm_radius.or(c.sppm_radius);
         if self.emit_photons.is_some() {
             c.emit_photons = self.emit_photons;
         }

@@ -72,6 +72,23 @@ pub struct RenderConfig {
     pub ic_min_radius: f32,
     /// Largest irradiance-cache valid radius, fraction of the bounding radius.
     pub ic_max_radius: f32,
+
+    // ---- progressive integrators (`sppm`, `ppm`; ignored by the others) ----
+    /// Passes to run; absent = 16, or unbounded when `time_limit` is set.
+    pub passes: Option<u32>,
+    /// Photon paths emitted per pass (`sppm`: default 2^17; `ppm`: when set, each
+    /// pass emits exactly this many instead of filling `photons` / `caustic_photons`).
+    pub photons_per_pass: Option<u64>,
+    /// Radius-reduction parameter α ∈ (0, 1] (1 = radius never shrinks).
+    pub alpha: f32,
+    /// Stop after the pass that crosses this many seconds.
+    pub time_limit: Option<f64>,
+    /// `sppm`: initial per-pixel radius (scene units); default 0.02 × the scene radius.
+    pub sppm_radius: Option<f32>,
+    /// `sppm`: direct light by `trace` (shadow rays at the visible point) or `photons`.
+    pub sppm_direct: String,
+    /// Experiment runner: also measure the image after these passes.
+    pub record_passes: Vec<u32>,
 }
 
 /// Depth cap when `max_depth` is unset. A path (or photon) caught by total internal
@@ -121,6 +138,13 @@ impl Default for RenderConfig {
             ic_tolerance: 0.3,
             ic_min_radius: 0.01,
             ic_max_radius: 0.25,
+            passes: None,
+            photons_per_pass: None,
+            alpha: 2.0 / 3.0,
+            time_limit: None,
+            sppm_radius: None,
+            sppm_direct: "trace".into(),
+            record_passes: Vec::new(),
         }
     }
 }
