@@ -15,7 +15,7 @@
 //! `"final_gather"` for an estimate that converges to the exact image.
 
 use super::Integrator;
-use super::photon::PhotonIntegrator;
+use super::photon::{Output, PhotonIntegrator};
 use super::progressive::{Budget, OnPass, next_radius2};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
@@ -63,6 +63,9 @@ pub fn validate(cfg: &RenderConfig) -> Result<()> {
 
 /// The probabilistic progressive photon-mapping integrator.
 pub struct PpmIntegrator {
+    /// What every pass's photon integrator writes (e.g. `PhotonsDirect`, the direct
+    /// visualisation of the direct map, used by the statistical tests).
+    pub output: Output,
     cfg: RenderConfig,
     quiet: bool,
     counters: BTreeMap<String, f64>,
@@ -72,7 +75,7 @@ impl PpmIntegrator {
     /// Builds the integrator (checking its settings).
     pub fn new(cfg: &RenderConfig, quiet: bool) -> Result<Self> {
         validate(cfg)?;
-        Ok(PpmIntegrator { cfg: cfg.clone(), quiet, counters: BTreeMap::new() })
+        Ok(PpmIntegrator { output: Output::All, cfg: cfg.clone(), quiet, counters: BTreeMap::new() })
     }
 
     fn run(&mut self, world: &World, on_pass: OnPass) -> Result<(Film, RenderStats)> {
@@ -96,6 +99,7 @@ impl PpmIntegrator {
             let i = pass + 1;
             let pcfg = pass_config(&self.cfg, i, r2.sqrt() as f32, rc2.sqrt() as f32, has_specular);
             let mut integrator = PhotonIntegrator::new(&pcfg, registry::make_rr(&pcfg.rr)?, true)?;
+            integrator.output = self.output;
             let t0 = Instant::now();
             integrator.preprocess(world)?;
             t_pre += t0.elapsed().as_secs_f64();

@@ -80,9 +80,9 @@ impl Budget {
     pub fn elapsed(&self) -> f64 {
         self.start.elapsed().as_secs_f64()
     }
-    /// True when another pass may start after `done` passes.
+    /// True when another pass may start after `done` passes (the first always runs).
     pub fn more(&self, done: u32) -> bool {
-        done < self.max_passes && self.time_limit.is_none_or(|t| self.elapsed() < t)
+        done < self.max_passes && (done == 0 || self.time_limit.is_none_or(|t| self.elapsed() < t))
     }
 }
 
@@ -141,6 +141,6 @@ mod tests {
         assert!(b.more(DEFAULT_PASSES - 1) && !b.more(DEFAULT_PASSES));
         let b = Budget::new(&RenderConfig { time_limit: Some(1e-9), ..Default::default() });
         std::thread::sleep(std::time::Duration::from_millis(2));
-        assert!(!b.more(1));
+        assert!(b.more(0) && !b.more(1));
     }
 }
