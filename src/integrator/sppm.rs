@@ -90,6 +90,9 @@ pub struct VisiblePoint {
     pub beta: Color,
 }
 
+/// A camera path's emitted + direct radiance and its visible point.
+type CameraSample = (Color, Option<VisiblePoint>);
+
 /// Per-pixel statistics carried from pass to pass.
 #[derive(Clone, Copy, Debug)]
 pub struct PixelStats {
@@ -157,7 +160,7 @@ impl SppmIntegrator {
         pass: u32,
         s: &mut dyn Sampler,
         stats: &mut TraversalStats,
-    ) -> (Color, Option<VisiblePoint>) {
+    ) -> CameraSample {
         let cam = &world.scene.camera;
         s.start(y as u64 * cam.width as u64 + x as u64, pass as u64);
         s.set_dimension(DIM_PIXEL);
@@ -235,7 +238,7 @@ impl SppmIntegrator {
         while budget.more(pass) {
             // 1. Camera pass.
             let t0 = Instant::now();
-            let rows: Vec<(Vec<(Color, Option<VisiblePoint>)>, TraversalStats)> = (0..h)
+            let rows: Vec<(Vec<CameraSample>, TraversalStats)> = (0..h)
                 .into_par_iter()
                 .map_init(
                     || cam_sampler.clone_box(),
