@@ -89,6 +89,12 @@ pub struct RenderConfig {
     pub sppm_direct: String,
     /// Experiment runner: also measure the image after these passes.
     pub record_passes: Vec<u32>,
+    /// Write the progressive state to `checkpoint_file` after every this many passes.
+    pub checkpoint_every: Option<u32>,
+    /// State file of `checkpoint_every` / `resume` (`render` sets OUT.checkpoint.json).
+    pub checkpoint_file: Option<String>,
+    /// Continue from `checkpoint_file` (bit-identical to an uninterrupted run).
+    pub resume: bool,
 }
 
 /// Depth cap when `max_depth` is unset. A path (or photon) caught by total internal
@@ -145,6 +151,9 @@ impl Default for RenderConfig {
             sppm_radius: None,
             sppm_direct: "trace".into(),
             record_passes: Vec::new(),
+            checkpoint_every: None,
+            checkpoint_file: None,
+            resume: false,
         }
     }
 }

@@ -16,7 +16,7 @@
 
 use super::Integrator;
 use super::photon::{Output, PhotonIntegrator};
-use super::progressive::{Budget, OnPass, next_radius2};
+use super::progressive::{Budget, OnPass, load_checkpoint, next_radius2, save_checkpoint};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
@@ -49,6 +49,7 @@ pub fn pass_config(cfg: &RenderConfig, i: u32, r: f32, rc: f32, has_specular: bo
     c.photons_per_pass = None;
     c.time_limit = None;
     c.record_passes = Vec::new();
+    (c.checkpoint_every, c.checkpoint_file, c.resume) = (None, None, false);
     c
 }
 
@@ -94,6 +95,17 @@ impl PpmIntegrator {
         let (mut t_pre, mut t_render) = (0.0, 0.0);
         let mut emitted = 0.0;
         let mut pass = 0u32;
+        // Checkpoint state: pass sums, r², r_c² (f64 bit patterns).
+        type State = (Vec<[u64; 3]>, u64, u64);
+        if let Some((done, (saved, a, b))) = load_checkpoint::<State>(&self.cfg, world)? {
+            if saved.len() != sum.len() {
+                anyhow::bail!("checkpoint holds {} pixels, the image has {}", saved.len(), sum.len());
+            }
+            sum = saved.iter().map(|v| DVec3::from_array(v.map(f64::from_bits))).collect();
+            (r2, rc2, pass) = (f64::from_bits(a), f64::from_bits(b), done);
+            let inv = 1.0 / pass.max(1) as f64;
+            film.pixels.par_iter_mut().zip(sum.par_iter()).for_each(|(o, s)| *o = (*s * inv).as_vec3());
+        }
         let pb = crate::render::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "ppm");
         while budget.more(pass) {
             let i = pass + 1;
@@ -117,6 +129,10 @@ impl PpmIntegrator {
             on_pass(pass, budget.elapsed(), &film);
             r2 = next_radius2(r2, i, alpha);
             rc2 = next_radius2(rc2, i, alpha);
+            if self.cfg.checkpoint_every.is_some_and(|k| pass % k == 0) {
+                let state: State = (sum.iter().map(|v| v.to_array().map(f64::to_bits)).collect(), r2.to_bits(), rc2.to_bits());
+                save_checkpoint(&self.cfg, world, pass, &state)?;
+            }
         }
         pb.finish_and_clear();
         stats.seconds = budget.elapsed();

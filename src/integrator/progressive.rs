@@ -4,7 +4,8 @@
 
 use crate::config::RenderConfig;
 use crate::film::Film;
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize, de::DeserializeOwned};
 use std::time::Instant;
 
 /// Called after every pass with (passes done, seconds since the first pass began,
@@ -33,6 +34,12 @@ pub fn validate(cfg: &RenderConfig) -> Result<()> {
     if cfg.record_passes.contains(&0) {
         bail!("record_passes counts passes from 1; 0 is not a pass");
     }
+    if cfg.checkpoint_every == Some(0) {
+        bail!("checkpoint_every must be at least 1 pass");
+    }
+    if (cfg.checkpoint_every.is_some() || cfg.resume) && cfg.checkpoint_file.is_none() {
+        bail!("checkpoint_every / resume need a checkpoint_file (give `render` an output, -o OUT: the state goes to OUT.checkpoint.json)");
+    }
     if cfg.sampler == "hammersley" && cfg.passes.is_none() {
         bail!("sampler `hammersley` needs the number of passes up front: set passes (--passes N) or use `halton`");
     }
@@ -50,6 +57,8 @@ pub fn reject_for_fixed_budget(cfg: &RenderConfig) -> Result<()> {
         ("sppm_radius", cfg.sppm_radius != d.sppm_radius),
         ("sppm_direct", cfg.sppm_direct != d.sppm_direct),
         ("record_passes", cfg.record_passes != d.record_passes),
+        ("checkpoint_every", cfg.checkpoint_every != d.checkpoint_every),
+        ("resume", cfg.resume != d.resume),
     ]
     .iter()
     .filter(|x| x.1)
@@ -59,6 +68,57 @@ pub fn reject_for_fixed_budget(cfg: &RenderConfig) -> Result<()> {
         bail!("{} only apply to the progressive integrators (sppm, ppm), not `{}`", set.join(", "), cfg.integrator);
     }
     Ok(())
+}
+
+/// A saved progressive state (`checkpoint_file`, JSON; floats stored as their bits so
+/// that a resumed run continues bit for bit).
+#[derive(Serialize, Deserialize)]
+struct Checkpoint<S> {
+    format: String,
+    integrator: String,
+    key: String,
+    pass: u32,
+    state: S,
+}
+
+const CHECKPOINT_FORMAT: &str = "photonlab-progressive-checkpoint-v1";
+
+/// What a checkpoint must match: the configuration without the keys that only say
+/// how long or where to run, and the scene.
+fn checkpoint_key(cfg: &RenderConfig, world: &crate::world::World) -> Result<String> {
+    let mut c = cfg.clone();
+    (c.passes, c.time_limit, c.threads, c.record_passes) = (None, None, 0, Vec::new());
+    (c.checkpoint_every, c.checkpoint_file, c.resume) = (None, None, false);
+    let text = toml::to_string(&c)?;
+    let words: Vec<u64> = text.bytes().map(u64::from).collect();
+    let scene = crate::experiment::scene_fingerprint(&world.scene);
+    Ok(format!("{:016x}{scene:016x}", crate::math::hash_words(&words)))
+}
+
+/// With `resume`: the pass count and state saved in `checkpoint_file`, after checking
+/// that they were written for this configuration and scene.
+pub fn load_checkpoint<S: DeserializeOwned>(cfg: &RenderConfig, world: &crate::world::World) -> Result<Option<(u32, S)>> {
+    let (true, Some(path)) = (cfg.resume, &cfg.checkpoint_file) else { return Ok(None) };
+    let text = std::fs::read_to_string(path).with_context(|| format!("{path}: cannot read the checkpoint to resume from"))?;
+    let c: Checkpoint<S> = serde_json::from_str(&text).with_context(|| format!("{path}: not a readable checkpoint"))?;
+    if c.format != CHECKPOINT_FORMAT || c.integrator != cfg.integrator {
+        bail!("{path}: a checkpoint of `{}` ({}), not of `{}`", c.integrator, c.format, cfg.integrator);
+    }
+    if c.key != checkpoint_key(cfg, world)? {
+        bail!("{path}: the checkpoint was written for another configuration or scene (only passes, time_limit and threads may change)");
+    }
+    Ok(Some((c.pass, c.state)))
+}
+
+/// Writes the state after pass `pass` when `checkpoint_every` divides it.
+pub fn save_checkpoint<S: Serialize>(cfg: &RenderConfig, world: &crate::world::World, pass: u32, state: &S) -> Result<()> {
+    let (Some(every), Some(path)) = (cfg.checkpoint_every, &cfg.checkpoint_file) else { return Ok(()) };
+    if pass % every != 0 {
+        return Ok(());
+    }
+    let c =
+        Checkpoint { format: CHECKPOINT_FORMAT.into(), integrator: cfg.integrator.clone(), key: checkpoint_key(cfg, world)?, pass, state };
+    crate::film::write_atomic(std::path::Path::new(path), serde_json::to_string(&c)?.as_bytes())
 }
 
 /// The pass budget of a run.

@@ -27,7 +27,7 @@
 //! points with atomic adds instead, whose order depends on the schedule).
 
 use super::Integrator;
-use super::progressive::{Budget, OnPass};
+use super::progressive::{Budget, OnPass, load_checkpoint, save_checkpoint};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
@@ -123,6 +123,16 @@ impl PixelStats {
         self.n = n_new;
         self.r = r_new;
     }
+    /// The statistics as bit patterns (checkpoints).
+    pub fn to_bits(&self) -> [u64; 8] {
+        let v = [self.ld.x, self.ld.y, self.ld.z, self.tau.x, self.tau.y, self.tau.z, self.n, self.r];
+        v.map(f64::to_bits)
+    }
+    /// Inverse of [`PixelStats::to_bits`].
+    pub fn from_bits(b: &[u64; 8]) -> Self {
+        let v = b.map(f64::from_bits);
+        PixelStats { ld: DVec3::new(v[0], v[1], v[2]), tau: DVec3::new(v[3], v[4], v[5]), n: v[6], r: v[7] }
+    }
     /// Radiance estimate after `passes` passes of `photons` emitted paths each.
     pub fn radiance(&self, passes: u32, photons: u64) -> Color {
         let p = passes.max(1) as f64;
@@ -152,15 +162,7 @@ impl SppmIntegrator {
 
     /// Traces pixel (x, y)'s camera path of pass `pass`: emitted + direct radiance and
     /// the visible point, if the path reaches a non-delta surface.
-    pub fn camera_path(
-        &self,
-        world: &World,
-        x: u32,
-        y: u32,
-        pass: u32,
-        s: &mut dyn Sampler,
-        stats: &mut TraversalStats,
-    ) -> CameraSample {
+    pub fn camera_path(&self, world: &World, x: u32, y: u32, pass: u32, s: &mut dyn Sampler, stats: &mut TraversalStats) -> CameraSample {
         let cam = &world.scene.camera;
         s.start(y as u64 * cam.width as u64 + x as u64, pass as u64);
         s.set_dimension(DIM_PIXEL);
@@ -234,6 +236,14 @@ impl SppmIntegrator {
         let mut photon_rays = TraversalStats::default();
         let mut pass = 0u32;
         let mut film = Film::new(w, h);
+        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 8]>>(&self.cfg, world)? {
+            if saved.len() != npix {
+                bail!("checkpoint holds {} pixels, the image has {npix}", saved.len());
+            }
+            pixels = saved.iter().map(PixelStats::from_bits).collect();
+            pass = done;
+            film.pixels.par_iter_mut().zip(pixels.par_iter()).for_each(|(o, px)| *o = px.radiance(pass, m));
+        }
         let pb = crate::render::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "sppm");
         while budget.more(pass) {
             // 1. Camera pass.
@@ -307,6 +317,9 @@ impl SppmIntegrator {
             pb.inc(1);
             film.pixels.par_iter_mut().zip(pixels.par_iter()).for_each(|(o, px)| *o = px.radiance(pass, m));
             on_pass(pass, budget.elapsed(), &film);
+            if self.cfg.checkpoint_every.is_some_and(|k| pass % k == 0) {
+                save_checkpoint(&self.cfg, world, pass, &pixels.iter().map(PixelStats::to_bits).collect::<Vec<_>>())?;
+            }
         }
         pb.finish_and_clear();
         stats.seconds = budget.elapsed();
