@@ -6,8 +6,8 @@
 //!    directly or through mirrors and glass count fully; delta surfaces are followed
 //!    by sampling one lobe; at the first non-delta (diffuse or glossy) surface the
 //!    path stops and leaves a *visible point* (position, `wo`, BSDF, throughput β).
-//!    Direct light is added there by one shadow ray (`sppm_direct = "trace"`), or left
-//!    to the photons (`"photons"`).
+//!    Direct light is added there by `direct_samples` shadow rays, stratified by
+//!    `direct_sampler` (`sppm_direct = "trace"`), or left to the photons (`"photons"`).
 //! 2. **Photon pass.** `photons_per_pass` photon paths (indices pass·M … pass·M + M − 1
 //!    of one emission sequence), traced by [`crate::photon::trace_path`]. Photon hits on
 //!    non-delta surfaces after at least one bounce are kept (first hits too with
@@ -33,12 +33,12 @@ use crate::config::RenderConfig;
 use crate::film::Film;
 use crate::geometry::Ray;
 use crate::material::{ShadingPoint, TransportMode};
-use crate::math::Color;
+use crate::math::{Color, hash_words};
 use crate::photon::{MapKind, RawPhoton, trace_path};
 use crate::registry;
 use crate::render::RenderStats;
 use crate::rr::{RrContext, RussianRoulette, roulette};
-use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_LIGHT_SELECT, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
+use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
 use crate::world::World;
 use anyhow::{Result, bail};
 use glam::{DVec3, IVec3, Vec3};
@@ -61,6 +61,10 @@ pub fn validate(cfg: &RenderConfig) -> Result<()> {
     if !matches!(cfg.sppm_direct.as_str(), "trace" | "photons") {
         bail!("unknown sppm_direct `{}` (known: trace, photons)", cfg.sppm_direct);
     }
+    if cfg.direct_samples == 0 {
+        bail!("direct_samples must be at least 1");
+    }
+    registry::check_sampler(&cfg.direct_sampler)?;
     if let Some(r) = cfg.sppm_radius
         && (r.is_nan() || r <= 0.0 || r.is_infinite())
     {
@@ -162,7 +166,18 @@ impl SppmIntegrator {
 
     /// Traces pixel (x, y)'s camera path of pass `pass`: emitted + direct radiance and
     /// the visible point, if the path reaches a non-delta surface.
-    pub fn camera_path(&self, world: &World, x: u32, y: u32, pass: u32, s: &mut dyn Sampler, stats: &mut TraversalStats) -> CameraSample {
+    /// `direct` is the direct-light sampler (unused with `sppm_direct = "photons"`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn camera_path(
+        &self,
+        world: &World,
+        x: u32,
+        y: u32,
+        pass: u32,
+        s: &mut dyn Sampler,
+        direct: &mut dyn Sampler,
+        stats: &mut TraversalStats,
+    ) -> CameraSample {
         let cam = &world.scene.camera;
         s.start(y as u64 * cam.width as u64 + x as u64, pass as u64);
         s.set_dimension(DIM_PIXEL);
@@ -170,7 +185,6 @@ impl SppmIntegrator {
         let mut ray = cam.generate_ray(x as f32 + u[0], y as f32 + u[1]);
         let mut beta = Color::ONE;
         let mut l = Color::ZERO;
-        let trace_direct = self.cfg.sppm_direct == "trace";
         let max_depth = self.cfg.depth_limit();
         let mut depth = 0u32;
         while let Some(it) = world.intersect(&ray, stats) {
@@ -184,11 +198,20 @@ impl SppmIntegrator {
             let bsdf = &mat.bsdf;
             let dim = bounce_dim(depth);
             if !bsdf.is_delta() {
-                if trace_direct {
-                    s.set_dimension(dim + BOUNCE_LIGHT_SELECT);
-                    let u_sel = s.next_1d();
-                    let u_light = s.next_2d();
-                    l += beta * direct_light(world, &it, wo, bsdf, u_sel, u_light, stats);
+                if self.cfg.sppm_direct == "trace" {
+                    let ds = &mut *direct;
+                    // `direct_samples` shadow rays, stratified by the direct sampler on a
+                    // stream of its own per (pixel, pass).
+                    let n = self.cfg.direct_samples.max(1);
+                    let key = hash_words(&[y as u64 * cam.width as u64 + x as u64, pass as u64, 0xD1]);
+                    let mut sum = Color::ZERO;
+                    for j in 0..n {
+                        ds.start(key, j as u64);
+                        let u_sel = ds.next_1d();
+                        let u_light = ds.next_2d();
+                        sum += direct_light(world, &it, wo, bsdf, u_sel, u_light, stats);
+                    }
+                    l += beta * sum / n as f32;
                 }
                 let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
                 return (l, Some(VisiblePoint { p: it.p, n, wo, sp: it.sp, tri: it.tri, beta }));
@@ -229,6 +252,8 @@ impl SppmIntegrator {
         let cam_sampler = registry::make_sampler(&self.cfg.sampler, self.cfg.seed, counts)?;
         let emit_sampler = registry::make_sampler(&self.cfg.sampler, self.cfg.seed, counts.map(|c| c * m))?;
         let keep_first = self.cfg.sppm_direct == "photons";
+        let n_direct = self.cfg.direct_samples.max(1) as u64;
+        let direct_sampler = registry::make_sampler(&self.cfg.direct_sampler, self.cfg.seed, Some(n_direct))?;
         let mut pixels = vec![PixelStats::new(r0); npix];
         let mut stats = RenderStats::default();
         let (mut t_camera, mut t_photon, mut t_gather) = (0.0, 0.0, 0.0);
@@ -251,10 +276,10 @@ impl SppmIntegrator {
             let rows: Vec<(Vec<CameraSample>, TraversalStats)> = (0..h)
                 .into_par_iter()
                 .map_init(
-                    || cam_sampler.clone_box(),
-                    |s, y| {
+                    || (cam_sampler.clone_box(), direct_sampler.clone_box()),
+                    |(s, ds), y| {
                         let mut st = TraversalStats::default();
-                        let row = (0..w).map(|x| self.camera_path(world, x, y, pass, s.as_mut(), &mut st)).collect();
+                        let row = (0..w).map(|x| self.camera_path(world, x, y, pass, s.as_mut(), ds.as_mut(), &mut st)).collect();
                         (row, st)
                     },
                 )
