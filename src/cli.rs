@@ -329,7 +329,7 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
     let name = scene.name.clone();
     // Progressive renders with checkpoints also write the image at every checkpoint.
     let mut on_pass = |p: u32, _: f64, f: &crate::film::Film| {
-        if cfg.checkpoint_every.is_some_and(|k| p % k == 0)
+        if cfg.checkpoint_every.is_some_and(|k| p.is_multiple_of(k))
             && let Err(e) = f.write_pair(&out)
         {
             eprintln!("warning: cannot write the image of pass {p}: {e:#}");

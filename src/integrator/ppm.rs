@@ -129,7 +129,7 @@ impl PpmIntegrator {
             on_pass(pass, budget.elapsed(), &film);
             r2 = next_radius2(r2, i, alpha);
             rc2 = next_radius2(rc2, i, alpha);
-            if self.cfg.checkpoint_every.is_some_and(|k| pass % k == 0) {
+            if self.cfg.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
                 let state: State = (sum.iter().map(|v| v.to_array().map(f64::to_bits)).collect(), r2.to_bits(), rc2.to_bits());
                 save_checkpoint(&self.cfg, world, pass, &state)?;
             }

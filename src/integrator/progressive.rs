@@ -113,7 +113,7 @@ pub fn load_checkpoint<S: DeserializeOwned>(cfg: &RenderConfig, world: &crate::w
 /// Writes the state after pass `pass` when `checkpoint_every` divides it.
 pub fn save_checkpoint<S: Serialize>(cfg: &RenderConfig, world: &crate::world::World, pass: u32, state: &S) -> Result<()> {
     let (Some(every), Some(path)) = (cfg.checkpoint_every, &cfg.checkpoint_file) else { return Ok(()) };
-    if pass % every != 0 {
+    if !pass.is_multiple_of(every) {
         return Ok(());
     }
     let c =

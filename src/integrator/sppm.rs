@@ -342,7 +342,7 @@ impl SppmIntegrator {
             pb.inc(1);
             film.pixels.par_iter_mut().zip(pixels.par_iter()).for_each(|(o, px)| *o = px.radiance(pass, m));
             on_pass(pass, budget.elapsed(), &film);
-            if self.cfg.checkpoint_every.is_some_and(|k| pass % k == 0) {
+            if self.cfg.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
                 save_checkpoint(&self.cfg, world, pass, &pixels.iter().map(PixelStats::to_bits).collect::<Vec<_>>())?;
             }
         }
