@@ -1,7 +1,6 @@
 //! Command-line front end: `render`, `scene export`, `bench`.
 
 use crate::config::{RenderConfig, parse_resolution};
-use crate::pipeline::render_scene_with_aovs;
 use crate::scene::{Scene, builtin::builtin, export::export_scene, loader::load_scene};
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -183,6 +182,30 @@ pub struct RenderArgs {
     /// Photon integrator: rays drawn from the glossy lobe at glossy points.
     #[arg(long)]
     pub glossy_samples: Option<u32>,
+    /// sppm / ppm: maximum number of passes (default 16, unbounded with --time-limit).
+    #[arg(long)]
+    pub passes: Option<u32>,
+    /// sppm / ppm: photon paths emitted per pass (sppm default 131072).
+    #[arg(long)]
+    pub photons_per_pass: Option<u64>,
+    /// sppm / ppm: radius-reduction parameter alpha in (0, 1] (default 2/3).
+    #[arg(long)]
+    pub alpha: Option<f32>,
+    /// sppm / ppm: stop after the pass that crosses this many seconds.
+    #[arg(long)]
+    pub time_limit: Option<f64>,
+    /// sppm: initial per-pixel radius in scene units (default 0.02 x scene radius).
+    #[arg(long)]
+    pub sppm_radius: Option<f32>,
+    /// sppm: direct light by `trace` (shadow rays, default) or `photons`.
+    #[arg(long)]
+    pub sppm_direct: Option<String>,
+    /// sppm / ppm: write the image and the state (OUT.checkpoint.json) every K passes.
+    #[arg(long)]
+    pub checkpoint_every: Option<u32>,
+    /// sppm / ppm: continue from OUT.checkpoint.json (bit-identical to an uninterrupted run).
+    #[arg(long)]
+    pub resume: bool,
     /// Extra images (photon integrator): direct, caustic, indirect, photons-direct,
     /// photons-indirect, photons-caustic, cache. Repeat or comma-separate.
     #[arg(long, value_delimiter = ',')]
@@ -231,6 +254,18 @@ impl RenderArgs {
         set!(photons, caustic_photons, max_emitted, gather, gather_samples, gather_bounces, precomputed_irradiance, precompute_stride, k);
         set!(caustic_k, filter, disc, direct_samples, direct_sampler, ic_tolerance, ic_min_radius, ic_max_radius);
         set!(ic_min_pixels, ic_max_pixels, ic_gradients, ic_neighbor_clamp, glossy_samples, ic_samples);
+        set!(alpha, sppm_direct);
+        c.passes = self.passes.or(c.passes);
+        c.photons_per_pass = self.photons_per_pass.or(c.photons_per_pass);
+        c.time_limit = self.time_limit.or(c.time_limit);
+        c.sppm_radius = self.sppm_radius.or(c.sppm_radius);
+        c.checkpoint_every = self.checkpoint_every.or(c.checkpoint_every);
+        c.resume = self.resume;
+        if let Some(o) = &self.output
+            && (c.checkpoint_every.is_some() || c.resume)
+        {
+            c.checkpoint_file = Some(format!("{}.checkpoint.json", o.with_extension("").display()));
+        }
         if self.emit_photons.is_some() {
             c.emit_photons = self.emit_photons;
         }
@@ -330,7 +365,15 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
     }
     let ntris = scene.triangles.len();
     let name = scene.name.clone();
-    let o = render_scene_with_aovs(scene, &cfg, a.quiet, &a.aov)?;
+    // Progressive renders with checkpoints also write the image at every checkpoint.
+    let mut on_pass = |p: u32, _: f64, f: &crate::film::Film| {
+        if cfg.checkpoint_every.is_some_and(|k| p.is_multiple_of(k))
+            && let Err(e) = f.write_pair(&out)
+        {
+            eprintln!("warning: cannot write the image of pass {p}: {e:#}");
+        }
+    };
+    let o = crate::pipeline::render_scene_observed(scene, &cfg, a.quiet, &a.aov, &mut on_pass)?;
     let (exr, png) = o.film.write_pair(&out).context("writing the image")?;
     let rays = o.rays();
     outln!(

@@ -91,6 +91,29 @@ pub struct RenderConfig {
     /// Rays drawn from the glossy lobe at glossy gathering points (the diffuse part
     /// uses the final gather or the cache).
     pub glossy_samples: u32,
+
+    // ---- progressive integrators (`sppm`, `ppm`; ignored by the others) ----
+    /// Passes to run; absent = 16, or unbounded when `time_limit` is set.
+    pub passes: Option<u32>,
+    /// Photon paths emitted per pass (`sppm`: default 2^17; `ppm`: when set, each
+    /// pass emits exactly this many instead of filling `photons` / `caustic_photons`).
+    pub photons_per_pass: Option<u64>,
+    /// Radius-reduction parameter α ∈ (0, 1] (1 = radius never shrinks).
+    pub alpha: f32,
+    /// Stop after the pass that crosses this many seconds.
+    pub time_limit: Option<f64>,
+    /// `sppm`: initial per-pixel radius (scene units); default 0.02 × the scene radius.
+    pub sppm_radius: Option<f32>,
+    /// `sppm`: direct light by `trace` (shadow rays at the visible point) or `photons`.
+    pub sppm_direct: String,
+    /// Experiment runner: also measure the image after these passes.
+    pub record_passes: Vec<u32>,
+    /// Write the progressive state to `checkpoint_file` after every this many passes.
+    pub checkpoint_every: Option<u32>,
+    /// State file of `checkpoint_every` / `resume` (`render` sets OUT.checkpoint.json).
+    pub checkpoint_file: Option<String>,
+    /// Continue from `checkpoint_file` (bit-identical to an uninterrupted run).
+    pub resume: bool,
 }
 
 /// Depth cap when `max_depth` is unset. A path (or photon) caught by total internal
@@ -146,6 +169,16 @@ impl Default for RenderConfig {
             ic_samples: 256,
             ic_neighbor_clamp: true,
             glossy_samples: 16,
+            passes: None,
+            photons_per_pass: None,
+            alpha: 2.0 / 3.0,
+            time_limit: None,
+            sppm_radius: None,
+            sppm_direct: "trace".into(),
+            record_passes: Vec::new(),
+            checkpoint_every: None,
+            checkpoint_file: None,
+            resume: false,
         }
     }
 }

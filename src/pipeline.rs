@@ -61,7 +61,19 @@ pub fn render_scene(scene: Scene, cfg: &RenderConfig, quiet: bool) -> Result<Ren
 /// As [`render_scene`], also rendering the named extra images (AOVs) with the same
 /// pre-pass. `cache` marks the integrator's debug points (irradiance-cache entries)
 /// over a dimmed copy of the image.
-pub fn render_scene_with_aovs(mut scene: Scene, cfg: &RenderConfig, quiet: bool, aovs: &[String]) -> Result<RenderOutcome> {
+pub fn render_scene_with_aovs(scene: Scene, cfg: &RenderConfig, quiet: bool, aovs: &[String]) -> Result<RenderOutcome> {
+    render_scene_observed(scene, cfg, quiet, aovs, &mut |_, _, _| {})
+}
+
+/// As [`render_scene_with_aovs`]; progressive integrators (`sppm`, `ppm`) call
+/// `on_pass` with the image after every pass (others never call it).
+pub fn render_scene_observed(
+    mut scene: Scene,
+    cfg: &RenderConfig,
+    quiet: bool,
+    aovs: &[String],
+    on_pass: crate::integrator::progressive::OnPass,
+) -> Result<RenderOutcome> {
     registry::validate(cfg)?;
     if let Some([w, h]) = cfg.resolution {
         scene.camera = scene.camera.with_resolution(w, h).map_err(anyhow::Error::msg)?;
@@ -79,7 +91,10 @@ pub fn render_scene_with_aovs(mut scene: Scene, cfg: &RenderConfig, quiet: bool,
         let t1 = Instant::now();
         integrator.preprocess(&world)?;
         let preprocess_s = t1.elapsed().as_secs_f64();
-        let (film, stats) = render(&world, integrator.as_ref(), sampler.as_ref(), cfg.spp, quiet);
+        let (film, stats) = match integrator.render_progressive(&world, on_pass) {
+            Some(done) => done?,
+            None => render(&world, integrator.as_ref(), sampler.as_ref(), cfg.spp, quiet),
+        };
         let mut extra_images = Vec::new();
         for name in aovs {
             if name == "cache" {

@@ -3,7 +3,7 @@
 
 use crate::accel::{Accel, bvh::Bvh, bvh4::Bvh4, bvh8::Bvh8, bvh8q::Bvh8q, linear::Linear};
 use crate::config::{RenderConfig, StrategySpec};
-use crate::integrator::{Integrator, path::PathIntegrator, photon::PhotonIntegrator};
+use crate::integrator::{Integrator, path::PathIntegrator, photon::PhotonIntegrator, ppm::PpmIntegrator, sppm::SppmIntegrator};
 use crate::rr::{RussianRoulette, albedo::Albedo, fixed::Fixed, off::Off, throughput::Throughput};
 use crate::sampler::{Sampler, halton::HaltonSampler, hammersley::HammersleySampler, random::RandomSampler};
 use anyhow::{Result, bail};
@@ -16,7 +16,7 @@ pub const ACCELS: &[&str] = &["none", "bvh", "bvh4", "bvh8", "bvh8q"];
 /// Russian-roulette policy names.
 pub const RR_POLICIES: &[&str] = &["off", "fixed", "albedo", "throughput"];
 /// Integrator names.
-pub const INTEGRATORS: &[&str] = &["path", "photon"];
+pub const INTEGRATORS: &[&str] = &["path", "photon", "sppm", "ppm"];
 
 fn unknown(kind: &str, name: &str, known: &[&str]) -> anyhow::Error {
     anyhow::anyhow!("unknown {kind} `{name}` (known: {})", known.join(", "))
@@ -107,8 +107,15 @@ pub fn make_integrator_with(cfg: &RenderConfig, quiet: bool) -> Result<Box<dyn I
         bail!("rr `off` never ends a path: give a finite max_depth (--max-depth N)");
     }
     Ok(match cfg.integrator.as_str() {
-        "path" => Box::new(PathIntegrator { max_depth, rr }),
-        "photon" => Box::new(PhotonIntegrator::new(cfg, rr, quiet)?),
+        "path" | "photon" => {
+            crate::integrator::progressive::reject_for_fixed_budget(cfg)?;
+            match cfg.integrator.as_str() {
+                "path" => Box::new(PathIntegrator { max_depth, rr }),
+                _ => Box::new(PhotonIntegrator::new(cfg, rr, quiet)?),
+            }
+        }
+        "sppm" => Box::new(SppmIntegrator::new(cfg, rr, quiet)?),
+        "ppm" => Box::new(PpmIntegrator::new(cfg, quiet)?),
         other => return Err(unknown("integrator", other, INTEGRATORS)),
     })
 }

@@ -107,3 +107,12 @@ fn command_writes_report() {
     assert!(!bad.status.success());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn progressive_integrators_converge_at_the_theoretical_rate() {
+    let rows = check(Family::Progressive);
+    let slope = |n: &str| rows.iter().find(|r| r.test == n).unwrap().statistic;
+    // The rate follows α: α = 0.8 converges more slowly than α = 2/3.
+    assert!(slope("progressive/sppm/alpha0.8/slope") > slope("progressive/sppm/alpha0.67/slope"));
+    assert!(slope("progressive/planted/sppm_alpha1/slope") > -0.25);
+}

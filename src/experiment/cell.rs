@@ -4,7 +4,7 @@
 use super::manifest::Cell;
 use crate::config::RenderConfig;
 use crate::film::{Film, write_atomic};
-use crate::pipeline::render_scene;
+use crate::pipeline::render_scene_observed;
 use crate::scene::Scene;
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
@@ -14,6 +14,25 @@ use std::path::{Path, PathBuf};
 /// ε in the relative MSE (squared error / (reference² + ε)): keeps near-black pixels
 /// from dominating; the same value as `photonlab diff`.
 pub const REL_EPS: f64 = 1e-2;
+
+/// Integrator-counter prefixes of the progressive curve: `time_at_pass_N` (seconds,
+/// counted like `time_total_s`) and `relmse_at_pass_N` for each N of `record_passes`.
+pub const PASS_TIME: &str = "time_at_pass_";
+/// See [`PASS_TIME`].
+pub const PASS_RELMSE: &str = "relmse_at_pass_";
+
+/// The (time, relative MSE) points a progressive cell recorded, in pass order.
+pub fn pass_curve(extra: &BTreeMap<String, f64>) -> Vec<(u32, f64, f64)> {
+    let mut v: Vec<(u32, f64, f64)> = extra
+        .iter()
+        .filter_map(|(k, &t)| {
+            let p: u32 = k.strip_prefix(PASS_TIME)?.parse().ok()?;
+            Some((p, t, *extra.get(&format!("{PASS_RELMSE}{p}"))?))
+        })
+        .collect();
+    v.sort_by_key(|x| x.0);
+    v
+}
 
 /// Error of an image against a reference, averaged over pixels and RGB channels.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -231,7 +250,22 @@ pub fn finished(dir: &Path, cell: &Cell, reference_key: &str) -> Option<CellReco
 
 /// Renders one cell, writes its images and then its record (atomically, last).
 pub fn run_cell(scene: &Scene, cell: &Cell, reference: &Film, reference_key: &str, dir: &Path, quiet: bool) -> Result<CellRecord> {
-    let o = render_scene(scene.clone(), &cell.config, quiet).with_context(|| format!("cell `{}`", cell.stem))?;
+    // Progressive integrators: the error after each pass of `record_passes`.
+    let mut progress: Vec<(u32, f64, ErrorMetrics)> = Vec::new();
+    let record = &cell.config.record_passes;
+    let mut on_pass = |p: u32, t: f64, f: &Film| {
+        if record.contains(&p)
+            && let Ok(e) = error_metrics(f, reference)
+        {
+            progress.push((p, t, e));
+        }
+    };
+    let mut o =
+        render_scene_observed(scene.clone(), &cell.config, quiet, &[], &mut on_pass).with_context(|| format!("cell `{}`", cell.stem))?;
+    for (p, t, e) in progress {
+        o.extra.insert(format!("{PASS_TIME}{p}"), o.timings.accel_build_s + o.timings.preprocess_s + t);
+        o.extra.insert(format!("{PASS_RELMSE}{p}"), e.relmse);
+    }
     let metrics = error_metrics(&o.film, reference).with_context(|| format!("cell `{}`", cell.stem))?;
     let paths = CellPaths::new(dir, &cell.stem);
     o.film.write_exr(&paths.exr)?;

@@ -603,7 +603,13 @@ fn named_configs(c: &Spanned<Vec<Spanned<SpannedTable>>>, loc: &Loc) -> Result<E
         if drafts.iter().any(|d| d.label == name) {
             bail!("{at}: configuration name `{name}` is used twice");
         }
-        let mut entries: Vec<(&String, &Spanned<Value>)> = t.iter().filter(|(k, _)| k.as_str() != "name").collect();
+        // Optional `group`: configurations sharing it are one line in the plots.
+        let group = match t.get("group").map(|v| v.get_ref()) {
+            None => name.clone(),
+            Some(Value::String(g)) if !g.trim().is_empty() => g.clone(),
+            Some(_) => bail!("{at}: [[configs]] `{name}`: group must be a non-empty string"),
+        };
+        let mut entries: Vec<(&String, &Spanned<Value>)> = t.iter().filter(|(k, _)| !matches!(k.as_str(), "name" | "group")).collect();
         entries.sort_by_key(|(_, v)| v.span().start);
         let mut overrides = Vec::new();
         let mut spans = Vec::new();
@@ -615,7 +621,7 @@ fn named_configs(c: &Spanned<Vec<Spanned<SpannedTable>>>, loc: &Loc) -> Result<E
         drafts.push(ConfigDraft {
             values: vec![("name".into(), Value::String(name.clone()))],
             spans,
-            group: name.clone(),
+            group,
             stem: slug(&name),
             label: name,
             span: entry.span(),

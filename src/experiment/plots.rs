@@ -76,7 +76,11 @@ pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec
         if !groups.contains_key(&c.group) {
             order.push(c.group.clone());
         }
-        groups.entry(c.group.clone()).or_default().push((c.time_s, c.relmse));
+        // Progressive cells add their recorded passes: one run, a whole curve.
+        let curve = super::cell::pass_curve(&c.extra);
+        let g = groups.entry(c.group.clone()).or_default();
+        g.extend(curve.iter().map(|&(_, t, e)| (t, e)));
+        g.push((c.time_s, c.relmse));
     }
     let series: Vec<Series> = order
         .iter()

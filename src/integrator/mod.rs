@@ -1,11 +1,16 @@
-//! Integrators (chosen by name: `path`, `photon`).
+//! Integrators (chosen by name: `path`, `photon`, `sppm`, `ppm`).
 
 pub mod path;
 pub mod photon;
+pub mod ppm;
+pub mod progressive;
+pub mod sppm;
 
 use crate::accel::TraversalStats;
+use crate::film::Film;
 use crate::geometry::Ray;
 use crate::math::Color;
+use crate::render::RenderStats;
 use crate::sampler::Sampler;
 use crate::world::World;
 use std::collections::BTreeMap;
@@ -32,5 +37,10 @@ pub trait Integrator: Send + Sync {
     /// World-space points to mark in a debug image (e.g. irradiance-cache entries).
     fn debug_points(&self) -> Vec<glam::Vec3> {
         Vec::new()
+    }
+    /// Progressive integrators (`sppm`, `ppm`) render the whole image themselves, pass
+    /// by pass, calling `on_pass` with each pass's image; `None` = use the render pass.
+    fn render_progressive(&mut self, _world: &World, _on_pass: progressive::OnPass) -> Option<anyhow::Result<(Film, RenderStats)>> {
+        None
     }
 }

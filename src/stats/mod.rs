@@ -4,8 +4,8 @@
 //! Five families, one file each: [`rr`] (Russian roulette is unbiased, Welch's
 //! t-test), [`discrepancy`] (L2-star and exact star discrepancy of the samplers),
 //! [`chi2`] (chi-square goodness of fit of every sampling routine against its own
-//! pdf), [`brdf`] (energy conservation and reciprocity) and [`convergence`] (error
-//! vs sample count). Every family also runs a *planted control* — a deliberately
+//! pdf), [`brdf`] (energy conservation and reciprocity), [`convergence`] (error
+//! vs sample count) and [`progressive`] (error vs passes of `sppm` / `ppm`). Every family also runs a *planted control* — a deliberately
 //! wrong estimator, pdf or material — whose expected verdict is `fail`, so each test
 //! is shown to be able to fail. The suite passes exactly when every verdict equals
 //! its expected value.
@@ -14,6 +14,7 @@ pub mod brdf;
 pub mod chi2;
 pub mod convergence;
 pub mod discrepancy;
+pub mod progressive;
 pub mod rr;
 
 use crate::plot::{LinePlot, line_plot};
@@ -39,11 +40,13 @@ pub enum Family {
     Brdf,
     /// Convergence rates (error vs samples / photons).
     Convergence,
+    /// Consistency of the progressive integrators (error vs passes).
+    Progressive,
 }
 
 impl Family {
     /// The single families, in report order.
-    pub const EACH: [Family; 5] = [Family::Rr, Family::Discrepancy, Family::Chi2, Family::Brdf, Family::Convergence];
+    pub const EACH: [Family; 6] = [Family::Rr, Family::Discrepancy, Family::Chi2, Family::Brdf, Family::Convergence, Family::Progressive];
 
     /// Lower-case name.
     pub fn name(self) -> &'static str {
@@ -54,6 +57,7 @@ impl Family {
             Family::Chi2 => "chi2",
             Family::Brdf => "brdf",
             Family::Convergence => "convergence",
+            Family::Progressive => "progressive",
         }
     }
 }
@@ -164,6 +168,7 @@ pub fn run_family(family: Family, s: &Settings) -> Result<FamilyReport> {
         Family::Chi2 => chi2::run(s)?,
         Family::Brdf => brdf::run(s)?,
         Family::Convergence => convergence::run(s)?,
+        Family::Progressive => progressive::run(s)?,
     })
 }
 
@@ -303,6 +308,9 @@ const LEGEND: &str = "
   delta BSDFs (≤ 1).
 - `convergence/*`: log–log slope of the MSE against samples per pixel (random: −1 ±
   0.15; Halton / Hammersley: at least 0.2 steeper) or photons (≤ −0.3).
+- `progressive/*`: log–log slope of the MSE against passes of `sppm` and `ppm`
+  (exact reference), within 0.15 of Knaus & Zwicker's −min(α, 2(1 − α)); the
+  `planted` rows keep the radius fixed (α = 1) and are held to −2/3 (must fail).
 ";
 
 /// The rows as an aligned text table.

@@ -1,0 +1,189 @@
+//! `ppm`: probabilistic progressive photon mapping (Knaus & Zwicker 2011).
+//!
+//! Pass i is an independent render of the `photon` integrator — its own photon maps
+//! and camera samples from the pass seed hash(seed, i), every gather method and filter
+//! as configured — with the global and caustic search radii r_i shrinking by
+//! r²_{i+1} = r²_i (i + α) / (i + 1) from `max_radius` / `caustic_max_radius`; the
+//! image after p passes is the mean of the p pass images. No per-pixel statistics.
+//!
+//! With a fixed radius the estimate of each pass is biased by the kernel's blur; the
+//! shrinking radius makes the mean converge (variance O(p^−α), bias O(p^(α−1))). The
+//! photon integrator gathers the k nearest photons within r_i, so a pass is a
+//! fixed-radius estimate once r_i is below the k-th neighbour's distance (raise `k`
+//! for that to hold from the first pass). The irradiance cache's interpolation error
+//! (`ic_tolerance`) does not shrink with the passes: use `gather = "direct"` or
+//! `"final_gather"` for an estimate that converges to the exact image.
+
+use super::Integrator;
+use super::photon::{Output, PhotonIntegrator};
+use super::progressive::{Budget, OnPass, load_checkpoint, next_radius2, save_checkpoint};
+use crate::accel::TraversalStats;
+use crate::config::RenderConfig;
+use crate::film::Film;
+use crate::geometry::Ray;
+use crate::math::{Color, hash_words};
+use crate::registry;
+use crate::render::{RenderStats, render};
+use crate::sampler::Sampler;
+use crate::world::World;
+use anyhow::Result;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// The configuration of pass `i` (from 1) with radii `r` (global) and `rc` (caustic).
+pub fn pass_config(cfg: &RenderConfig, i: u32, r: f32, rc: f32, has_specular: bool) -> RenderConfig {
+    let mut c = cfg.clone();
+    c.integrator = "photon".into();
+    c.seed = hash_words(&[cfg.seed, i as u64, 0x9916]);
+    c.max_radius = Some(r);
+    c.caustic_max_radius = Some(rc);
+    if cfg.photons_per_pass.is_some() {
+        c.emit_photons = cfg.photons_per_pass;
+    }
+    if !has_specular {
+        c.caustic_photons = 0;
+    }
+    c.passes = None;
+    c.photons_per_pass = None;
+    c.time_limit = None;
+    c.record_passes = Vec::new();
+    (c.checkpoint_every, c.checkpoint_file, c.resume) = (None, None, false);
+    c
+}
+
+/// Checks the `ppm` settings (progressive keys + the photon integrator's).
+pub fn validate(cfg: &RenderConfig) -> Result<()> {
+    super::progressive::validate(cfg)?;
+    if cfg.sppm_radius.is_some() || cfg.sppm_direct != RenderConfig::default().sppm_direct {
+        anyhow::bail!("sppm_radius and sppm_direct apply to `sppm` only (ppm starts from max_radius / caustic_max_radius)");
+    }
+    super::photon::validate(&pass_config(cfg, 1, 1.0, 1.0, true))
+}
+
+/// The probabilistic progressive photon-mapping integrator.
+pub struct PpmIntegrator {
+    /// What every pass's photon integrator writes (e.g. `PhotonsDirect`, the direct
+    /// visualisation of the direct map, used by the statistical tests).
+    pub output: Output,
+    cfg: RenderConfig,
+    quiet: bool,
+    counters: BTreeMap<String, f64>,
+}
+
+impl PpmIntegrator {
+    /// Builds the integrator (checking its settings).
+    pub fn new(cfg: &RenderConfig, quiet: bool) -> Result<Self> {
+        validate(cfg)?;
+        Ok(PpmIntegrator { output: Output::All, cfg: cfg.clone(), quiet, counters: BTreeMap::new() })
+    }
+
+    fn run(&mut self, world: &World, on_pass: OnPass) -> Result<(Film, RenderStats)> {
+        let cam = &world.scene.camera;
+        let budget = Budget::new(&self.cfg);
+        let r_scene = world.lights.scene_radius;
+        let mut r2 = self.cfg.max_radius.unwrap_or(0.1 * r_scene) as f64;
+        r2 *= r2;
+        let mut rc2 = self.cfg.caustic_max_radius.unwrap_or(0.025 * r_scene) as f64;
+        rc2 *= rc2;
+        let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.is_delta());
+        let alpha = self.cfg.alpha as f64;
+        let mut sum = vec![DVec3::ZERO; (cam.width * cam.height) as usize];
+        let mut film = Film::new(cam.width, cam.height);
+        let mut stats = RenderStats::default();
+        let (mut t_pre, mut t_render) = (0.0, 0.0);
+        let mut emitted = 0.0;
+        let mut pass = 0u32;
+        // Checkpoint state: pass sums, r², r_c² (f64 bit patterns).
+        type State = (Vec<[u64; 3]>, u64, u64);
+        if let Some((done, (saved, a, b))) = load_checkpoint::<State>(&self.cfg, world)? {
+            if saved.len() != sum.len() {
+                anyhow::bail!("checkpoint holds {} pixels, the image has {}", saved.len(), sum.len());
+            }
+            sum = saved.iter().map(|v| DVec3::from_array(v.map(f64::from_bits))).collect();
+            (r2, rc2, pass) = (f64::from_bits(a), f64::from_bits(b), done);
+            let inv = 1.0 / pass.max(1) as f64;
+            film.pixels.par_iter_mut().zip(sum.par_iter()).for_each(|(o, s)| *o = (*s * inv).as_vec3());
+        }
+        let pb = crate::render::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "ppm");
+        while budget.more(pass) {
+            let i = pass + 1;
+            let pcfg = pass_config(&self.cfg, i, r2.sqrt() as f32, rc2.sqrt() as f32, has_specular);
+            let mut integrator = PhotonIntegrator::new(&pcfg, registry::make_rr(&pcfg.rr)?, true)?;
+            integrator.output = self.output;
+            let t0 = Instant::now();
+            integrator.preprocess(world)?;
+            t_pre += t0.elapsed().as_secs_f64();
+            let sampler = registry::make_sampler(&pcfg.sampler, pcfg.seed, Some(pcfg.spp as u64))?;
+            let (img, st) = render(world, &integrator, sampler.as_ref(), pcfg.spp, true);
+            t_render += st.seconds;
+            stats.traversal.add(&st.traversal);
+            stats.nonfinite_samples += st.nonfinite_samples;
+            emitted += integrator.stats().get("photons_emitted").copied().unwrap_or(0.0);
+            sum.par_iter_mut().zip(img.pixels.par_iter()).for_each(|(s, p)| *s += p.as_dvec3());
+            let inv = 1.0 / i as f64;
+            film.pixels.par_iter_mut().zip(sum.par_iter()).for_each(|(o, s)| *o = (*s * inv).as_vec3());
+            pass = i;
+            pb.inc(1);
+            on_pass(pass, budget.elapsed(), &film);
+            r2 = next_radius2(r2, i, alpha);
+            rc2 = next_radius2(rc2, i, alpha);
+            if self.cfg.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
+                let state: State = (sum.iter().map(|v| v.to_array().map(f64::to_bits)).collect(), r2.to_bits(), rc2.to_bits());
+                save_checkpoint(&self.cfg, world, pass, &state)?;
+            }
+        }
+        pb.finish_and_clear();
+        stats.seconds = budget.elapsed();
+        let c = &mut self.counters;
+        c.insert("passes".into(), pass as f64);
+        c.insert("photons_emitted".into(), emitted);
+        c.insert("photon_and_cache_s".into(), t_pre);
+        c.insert("pass_render_s".into(), t_render);
+        c.insert("passes_per_s".into(), pass as f64 / stats.seconds.max(1e-9));
+        c.insert("final_radius".into(), r2.sqrt());
+        Ok((film, stats))
+    }
+}
+
+impl Integrator for PpmIntegrator {
+    fn name(&self) -> &'static str {
+        "ppm"
+    }
+
+    /// Not used: the pipeline renders progressive integrators through
+    /// [`Integrator::render_progressive`].
+    fn li(&self, _world: &World, _ray: &Ray, _sampler: &mut dyn Sampler, _stats: &mut TraversalStats) -> Color {
+        Color::ZERO
+    }
+
+    fn render_progressive(&mut self, world: &World, on_pass: OnPass) -> Option<Result<(Film, RenderStats)>> {
+        Some(self.run(world, on_pass))
+    }
+
+    fn stats(&self) -> BTreeMap<String, f64> {
+        self.counters.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pass_configs_are_independent_photon_renders() {
+        let cfg = RenderConfig { integrator: "ppm".into(), photons_per_pass: Some(5000), passes: Some(8), ..Default::default() };
+        let a = pass_config(&cfg, 1, 2.0, 0.5, false);
+        let b = pass_config(&cfg, 2, 1.0, 0.25, false);
+        assert_eq!(a.integrator, "photon");
+        assert_ne!(a.seed, b.seed);
+        assert_eq!((a.max_radius, a.caustic_max_radius, a.emit_photons, a.caustic_photons), (Some(2.0), Some(0.5), Some(5000), 0));
+        assert!(super::super::progressive::reject_for_fixed_budget(&a).is_ok());
+        assert!(validate(&cfg).is_ok());
+        let bad = RenderConfig { sppm_radius: Some(1.0), ..cfg.clone() };
+        assert!(validate(&bad).unwrap_err().to_string().contains("sppm_radius"));
+        let bad = RenderConfig { gather: "nope".into(), ..cfg };
+        assert!(validate(&bad).unwrap_err().to_string().contains("nope"));
+    }
+}

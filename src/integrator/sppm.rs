@@ -1,0 +1,498 @@
+//! `sppm`: stochastic progressive photon mapping (Hachisuka & Jensen 2009), organised
+//! as pbrt-v4's `SPPMIntegrator`.
+//!
+//! Every pass:
+//! 1. **Camera pass.** One camera path per pixel (sample index = pass). Emitters seen
+//!    directly or through mirrors and glass count fully; delta surfaces are followed
+//!    by sampling one lobe; at the first non-delta (diffuse or glossy) surface the
+//!    path stops and leaves a *visible point* (position, `wo`, BSDF, throughput β).
+//!    Direct light is added there by `direct_samples` shadow rays, stratified by
+//!    `direct_sampler` (`sppm_direct = "trace"`), or left to the photons (`"photons"`).
+//! 2. **Photon pass.** `photons_per_pass` photon paths (indices pass·M … pass·M + M − 1
+//!    of one emission sequence), traced by [`crate::photon::trace_path`]. Photon hits on
+//!    non-delta surfaces after at least one bounce are kept (first hits too with
+//!    `"photons"`), in path order.
+//! 3. **Gather.** The kept photons go into a hash grid rebuilt per pass (cell edge =
+//!    twice the largest pixel radius, so a disc touches at most 8 cells). Each pixel's
+//!    visible point sums Φ_p f(wo, wi_p) over the photons within its radius that
+//!    arrived on its side of the surface (photon and visible-point normals within
+//!    ~45°, the photon coming from the visible point's hemisphere).
+//! 4. **Update** (per pixel): N' = N + αM, r' = r √(N'/(N + M)), τ' = (τ + βΦ) r'²/r².
+//!
+//! The image after p passes is L = Σ L_direct / p + τ / (p·M·π r²).
+//!
+//! Determinism: the camera pass and the gather run per pixel; photons are merged in
+//! path order and the grid is filled in that order, so each pixel adds its photons
+//! in the same order for any thread count (pbrt-v4 splats photons into the visible
+//! points with atomic adds instead, whose order depends on the schedule).
+
+use super::Integrator;
+use super::progressive::{Budget, OnPass, load_checkpoint, save_checkpoint};
+use crate::accel::TraversalStats;
+use crate::config::RenderConfig;
+use crate::film::Film;
+use crate::geometry::Ray;
+use crate::material::{ShadingPoint, TransportMode};
+use crate::math::{Color, hash_words};
+use crate::photon::{MapKind, RawPhoton, trace_path};
+use crate::registry;
+use crate::render::RenderStats;
+use crate::rr::{RrContext, RussianRoulette, roulette};
+use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
+use crate::world::World;
+use anyhow::{Result, bail};
+use glam::{DVec3, IVec3, Vec3};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// Photon paths per pass when `photons_per_pass` is unset.
+pub const DEFAULT_PHOTONS_PER_PASS: u64 = 1 << 17;
+/// Default initial radius as a fraction of the scene's bounding-sphere radius.
+pub const DEFAULT_RADIUS_FRACTION: f32 = 0.02;
+/// Smallest cosine between a photon's surface normal and the visible point's.
+pub const NORMAL_COS: f32 = 0.7;
+/// Photon paths traced per parallel work item.
+const PHOTON_CHUNK: u64 = 1024;
+
+/// Checks the `sppm` settings.
+pub fn validate(cfg: &RenderConfig) -> Result<()> {
+    super::progressive::validate(cfg)?;
+    if !matches!(cfg.sppm_direct.as_str(), "trace" | "photons") {
+        bail!("unknown sppm_direct `{}` (known: trace, photons)", cfg.sppm_direct);
+    }
+    if cfg.direct_samples == 0 {
+        bail!("direct_samples must be at least 1");
+    }
+    registry::check_sampler(&cfg.direct_sampler)?;
+    if let Some(r) = cfg.sppm_radius
+        && (r.is_nan() || r <= 0.0 || r.is_infinite())
+    {
+        bail!("sppm_radius must be positive and finite, got {r}");
+    }
+    let photons = cfg.photons_per_pass.unwrap_or(DEFAULT_PHOTONS_PER_PASS);
+    if photons.saturating_mul(cfg.passes.unwrap_or(1) as u64) > u32::MAX as u64 * 64 {
+        bail!("photons_per_pass × passes is too large ({photons} × {:?})", cfg.passes);
+    }
+    Ok(())
+}
+
+/// Where a camera path left its visible point.
+#[derive(Clone, Copy, Debug)]
+pub struct VisiblePoint {
+    /// Position.
+    pub p: Vec3,
+    /// Geometric normal on the side the camera path arrived from.
+    pub n: Vec3,
+    /// Direction towards the camera (along the path).
+    pub wo: Vec3,
+    /// Shading frame.
+    pub sp: ShadingPoint,
+    /// Triangle (its material's BSDF is evaluated per photon).
+    pub tri: u32,
+    /// Camera-path throughput.
+    pub beta: Color,
+}
+
+/// A camera path's emitted + direct radiance and its visible point.
+type CameraSample = (Color, Option<VisiblePoint>);
+
+/// Per-pixel statistics carried from pass to pass.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelStats {
+    /// Sum over passes of emitted + directly lit radiance.
+    pub ld: DVec3,
+    /// Accumulated (radius-rescaled) flux τ.
+    pub tau: DVec3,
+    /// Accumulated photon count N.
+    pub n: f64,
+    /// Current radius.
+    pub r: f64,
+}
+
+impl PixelStats {
+    /// Fresh statistics with radius `r`.
+    pub fn new(r: f64) -> Self {
+        PixelStats { ld: DVec3::ZERO, tau: DVec3::ZERO, n: 0.0, r }
+    }
+    /// Folds in one pass's gather: `m` photons with summed flux `phi` (β applied).
+    pub fn update(&mut self, m: u64, phi: DVec3, alpha: f64) {
+        if m == 0 {
+            return;
+        }
+        let m = m as f64;
+        let n_new = self.n + alpha * m;
+        let r_new = self.r * (n_new / (self.n + m)).sqrt();
+        self.tau = (self.tau + phi) * (r_new * r_new) / (self.r * self.r);
+        self.n = n_new;
+        self.r = r_new;
+    }
+    /// The statistics as bit patterns (checkpoints).
+    pub fn to_bits(&self) -> [u64; 8] {
+        let v = [self.ld.x, self.ld.y, self.ld.z, self.tau.x, self.tau.y, self.tau.z, self.n, self.r];
+        v.map(f64::to_bits)
+    }
+    /// Inverse of [`PixelStats::to_bits`].
+    pub fn from_bits(b: &[u64; 8]) -> Self {
+        let v = b.map(f64::from_bits);
+        PixelStats { ld: DVec3::new(v[0], v[1], v[2]), tau: DVec3::new(v[3], v[4], v[5]), n: v[6], r: v[7] }
+    }
+    /// Radiance estimate after `passes` passes of `photons` emitted paths each.
+    pub fn radiance(&self, passes: u32, photons: u64) -> Color {
+        let p = passes.max(1) as f64;
+        let flux = self.tau / (p * photons as f64 * std::f64::consts::PI * self.r * self.r);
+        (self.ld / p + flux).as_vec3()
+    }
+}
+
+/// The stochastic progressive photon-mapping integrator.
+pub struct SppmIntegrator {
+    cfg: RenderConfig,
+    rr: Box<dyn RussianRoulette>,
+    quiet: bool,
+    counters: BTreeMap<String, f64>,
+}
+
+impl SppmIntegrator {
+    /// Builds the integrator (checking its settings).
+    pub fn new(cfg: &RenderConfig, rr: Box<dyn RussianRoulette>, quiet: bool) -> Result<Self> {
+        validate(cfg)?;
+        Ok(SppmIntegrator { cfg: cfg.clone(), rr, quiet, counters: BTreeMap::new() })
+    }
+
+    fn photons_per_pass(&self) -> u64 {
+        self.cfg.photons_per_pass.unwrap_or(DEFAULT_PHOTONS_PER_PASS)
+    }
+
+    /// Traces pixel (x, y)'s camera path of pass `pass`: emitted + direct radiance and
+    /// the visible point, if the path reaches a non-delta surface.
+    /// `direct` is the direct-light sampler (unused with `sppm_direct = "photons"`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn camera_path(
+        &self,
+        world: &World,
+        x: u32,
+        y: u32,
+        pass: u32,
+        s: &mut dyn Sampler,
+        direct: &mut dyn Sampler,
+        stats: &mut TraversalStats,
+    ) -> CameraSample {
+        let cam = &world.scene.camera;
+        s.start(y as u64 * cam.width as u64 + x as u64, pass as u64);
+        s.set_dimension(DIM_PIXEL);
+        let u = s.next_2d();
+        let mut ray = cam.generate_ray(x as f32 + u[0], y as f32 + u[1]);
+        let mut beta = Color::ONE;
+        let mut l = Color::ZERO;
+        let max_depth = self.cfg.depth_limit();
+        let mut depth = 0u32;
+        while let Some(it) = world.intersect(&ray, stats) {
+            let mat = world.material(&it);
+            // Every vertex before the visible point was reached by the camera or a
+            // delta lobe, so emission counts fully.
+            if it.front && mat.is_emitter() {
+                l += beta * mat.emission;
+            }
+            let wo = -ray.d.normalize();
+            let bsdf = &mat.bsdf;
+            let dim = bounce_dim(depth);
+            if !bsdf.is_delta() {
+                if self.cfg.sppm_direct == "trace" {
+                    let ds = &mut *direct;
+                    // `direct_samples` shadow rays, stratified by the direct sampler on a
+                    // stream of its own per (pixel, pass).
+                    let n = self.cfg.direct_samples.max(1);
+                    let key = hash_words(&[y as u64 * cam.width as u64 + x as u64, pass as u64, 0xD1]);
+                    let mut sum = Color::ZERO;
+                    for j in 0..n {
+                        ds.start(key, j as u64);
+                        let u_sel = ds.next_1d();
+                        let u_light = ds.next_2d();
+                        sum += direct_light(world, &it, wo, bsdf, u_sel, u_light, stats);
+                    }
+                    l += beta * sum / n as f32;
+                }
+                let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
+                return (l, Some(VisiblePoint { p: it.p, n, wo, sp: it.sp, tri: it.tri, beta }));
+            }
+            if depth >= max_depth {
+                break;
+            }
+            s.set_dimension(dim + BOUNCE_BSDF_LOBE);
+            let u_lobe = s.next_1d();
+            let u_dir = s.next_2d();
+            let Some(bs) = bsdf.sample(&it.sp, wo, u_lobe, u_dir, TransportMode::Radiance) else { break };
+            beta *= bs.weight;
+            if beta.max_element() <= 0.0 {
+                break;
+            }
+            depth += 1;
+            s.set_dimension(dim + BOUNCE_RR);
+            let u_rr = s.next_1d();
+            match roulette(self.rr.as_ref(), &RrContext { depth, throughput: beta, albedo: bsdf.albedo() }, u_rr) {
+                Some(w) => beta *= w,
+                None => break,
+            }
+            ray = world.spawn(&it, bs.wi);
+        }
+        (l, None)
+    }
+
+    /// Runs the passes; returns the final image and its counters.
+    fn run(&mut self, world: &World, on_pass: OnPass) -> Result<(Film, RenderStats)> {
+        let cam = &world.scene.camera;
+        let (w, h) = (cam.width, cam.height);
+        let npix = (w * h) as usize;
+        let budget = Budget::new(&self.cfg);
+        let m = self.photons_per_pass();
+        let alpha = self.cfg.alpha as f64;
+        let r0 = self.cfg.sppm_radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius) as f64;
+        let counts = (budget.max_passes != u32::MAX).then_some(budget.max_passes as u64);
+        let cam_sampler = registry::make_sampler(&self.cfg.sampler, self.cfg.seed, counts)?;
+        let emit_sampler = registry::make_sampler(&self.cfg.sampler, self.cfg.seed, counts.map(|c| c * m))?;
+        let keep_first = self.cfg.sppm_direct == "photons";
+        let n_direct = self.cfg.direct_samples.max(1) as u64;
+        let direct_sampler = registry::make_sampler(&self.cfg.direct_sampler, self.cfg.seed, Some(n_direct))?;
+        let mut pixels = vec![PixelStats::new(r0); npix];
+        let mut stats = RenderStats::default();
+        let (mut t_camera, mut t_photon, mut t_gather) = (0.0, 0.0, 0.0);
+        let mut kept_total = 0u64;
+        let mut photon_rays = TraversalStats::default();
+        let mut pass = 0u32;
+        let mut film = Film::new(w, h);
+        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 8]>>(&self.cfg, world)? {
+            if saved.len() != npix {
+                bail!("checkpoint holds {} pixels, the image has {npix}", saved.len());
+            }
+            pixels = saved.iter().map(PixelStats::from_bits).collect();
+            pass = done;
+            film.pixels.par_iter_mut().zip(pixels.par_iter()).for_each(|(o, px)| *o = px.radiance(pass, m));
+        }
+        let pb = crate::render::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "sppm");
+        while budget.more(pass) {
+            // 1. Camera pass.
+            let t0 = Instant::now();
+            let rows: Vec<(Vec<CameraSample>, TraversalStats)> = (0..h)
+                .into_par_iter()
+                .map_init(
+                    || (cam_sampler.clone_box(), direct_sampler.clone_box()),
+                    |(s, ds), y| {
+                        let mut st = TraversalStats::default();
+                        let row = (0..w).map(|x| self.camera_path(world, x, y, pass, s.as_mut(), ds.as_mut(), &mut st)).collect();
+                        (row, st)
+                    },
+                )
+                .collect();
+            let mut vps: Vec<Option<VisiblePoint>> = Vec::with_capacity(npix);
+            for (row, st) in rows {
+                stats.traversal.add(&st);
+                for (l, vp) in row {
+                    if crate::math::is_finite(l) {
+                        pixels[vps.len()].ld += l.as_dvec3();
+                    } else {
+                        stats.nonfinite_samples += 1;
+                    }
+                    vps.push(vp);
+                }
+            }
+            t_camera += t0.elapsed().as_secs_f64();
+
+            // 2. Photon pass.
+            let t1 = Instant::now();
+            let first = pass as u64 * m;
+            let chunks = m.div_ceil(PHOTON_CHUNK);
+            let traced: Vec<(Vec<RawPhoton>, TraversalStats)> = (0..chunks)
+                .into_par_iter()
+                .map_init(
+                    || emit_sampler.clone_box(),
+                    |s, c| {
+                        let mut out = Vec::new();
+                        let mut st = TraversalStats::default();
+                        for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
+                            trace_path(world, s.as_mut(), first + j, self.rr.as_ref(), self.cfg.depth_limit(), &mut st, &mut out);
+                        }
+                        out.retain(|p| keep_first || p.kind != MapKind::Direct);
+                        (out, st)
+                    },
+                )
+                .collect();
+            let mut photons = Vec::with_capacity(traced.iter().map(|t| t.0.len()).sum());
+            for (v, st) in traced {
+                photon_rays.add(&st);
+                photons.extend(v);
+            }
+            kept_total += photons.len() as u64;
+            t_photon += t1.elapsed().as_secs_f64();
+
+            // 3. Gather into the visible points and 4. update.
+            let t2 = Instant::now();
+            let r_max = vps.iter().zip(&pixels).filter(|(v, _)| v.is_some()).map(|(_, p)| p.r).fold(0.0f64, f64::max);
+            if r_max > 0.0 && !photons.is_empty() {
+                let grid = PhotonGrid::build(&photons, (2.0 * r_max) as f32);
+                pixels.par_iter_mut().zip(vps.par_iter()).for_each(|(px, vp)| {
+                    if let Some(vp) = vp {
+                        let (mm, phi) = gather(world, &grid, &photons, vp, px.r as f32);
+                        px.update(mm, phi * vp.beta.as_dvec3(), alpha);
+                    }
+                });
+            }
+            t_gather += t2.elapsed().as_secs_f64();
+            pass += 1;
+            pb.inc(1);
+            film.pixels.par_iter_mut().zip(pixels.par_iter()).for_each(|(o, px)| *o = px.radiance(pass, m));
+            on_pass(pass, budget.elapsed(), &film);
+            if self.cfg.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
+                save_checkpoint(&self.cfg, world, pass, &pixels.iter().map(PixelStats::to_bits).collect::<Vec<_>>())?;
+            }
+        }
+        pb.finish_and_clear();
+        stats.seconds = budget.elapsed();
+        stats.traversal.add(&photon_rays);
+        let threads = rayon::current_num_threads() as f64;
+        let c = &mut self.counters;
+        c.insert("passes".into(), pass as f64);
+        c.insert("photons_emitted".into(), (pass as u64 * m) as f64);
+        c.insert("photons_kept".into(), kept_total as f64);
+        c.insert("photon_rays".into(), photon_rays.total_rays() as f64);
+        c.insert("camera_pass_s".into(), t_camera);
+        c.insert("photon_pass_s".into(), t_photon);
+        c.insert("gather_s".into(), t_gather);
+        c.insert("passes_per_s".into(), pass as f64 / stats.seconds.max(1e-9));
+        c.insert("photons_per_s_per_thread".into(), (pass as u64 * m) as f64 / t_photon.max(1e-9) / threads);
+        let mean_r = pixels.iter().map(|p| p.r).sum::<f64>() / npix.max(1) as f64;
+        c.insert("mean_radius".into(), mean_r);
+        Ok((film, stats))
+    }
+}
+
+/// One shadow-ray estimate of direct light at a visible point (a light chosen by
+/// power, a point on it; no BSDF sampling, since the camera path ends here and the
+/// light it would reach after one more bounce is carried by photons).
+fn direct_light(
+    world: &World,
+    it: &crate::world::Interaction,
+    wo: Vec3,
+    bsdf: &crate::material::Bsdf,
+    u_sel: f32,
+    u_light: [f32; 2],
+    stats: &mut TraversalStats,
+) -> Color {
+    let Some(ls) = world.lights.sample_li(&world.scene, it.p, u_sel, u_light) else { return Color::ZERO };
+    if ls.pdf <= 0.0 {
+        return Color::ZERO;
+    }
+    let f = bsdf.eval(&it.sp, wo, ls.wi);
+    if f.max_element() <= 0.0 {
+        return Color::ZERO;
+    }
+    let visible =
+        if ls.dist.is_infinite() { world.unoccluded_dir(it, ls.wi, stats) } else { world.visible(it, ls.point, ls.normal, stats) };
+    if !visible {
+        return Color::ZERO;
+    }
+    f * ls.li * (ls.wi.dot(it.sp.ns()).abs() / ls.pdf)
+}
+
+/// Photons bucketed by a spatial hash of their grid cell, filled in photon order.
+pub struct PhotonGrid {
+    inv_cell: f32,
+    mask: usize,
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+#[inline]
+fn cell_hash(c: IVec3, mask: usize) -> usize {
+    let h = (c.x as u32).wrapping_mul(73_856_093) ^ (c.y as u32).wrapping_mul(19_349_663) ^ (c.z as u32).wrapping_mul(83_492_791);
+    (crate::math::mix64(h as u64) as usize) & mask
+}
+
+impl PhotonGrid {
+    /// Builds the grid with cubic cells of edge `cell`.
+    pub fn build(photons: &[RawPhoton], cell: f32) -> Self {
+        let inv_cell = 1.0 / cell.max(1e-30);
+        let buckets = photons.len().next_power_of_two().max(64);
+        let mask = buckets - 1;
+        let keys: Vec<u32> = photons.par_iter().map(|p| cell_hash((p.pos * inv_cell).floor().as_ivec3(), mask) as u32).collect();
+        let mut start = vec![0u32; buckets + 1];
+        for &k in &keys {
+            start[k as usize + 1] += 1;
+        }
+        for i in 0..buckets {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut items = vec![0u32; photons.len()];
+        for (i, &k) in keys.iter().enumerate() {
+            items[fill[k as usize] as usize] = i as u32;
+            fill[k as usize] += 1;
+        }
+        PhotonGrid { inv_cell, mask, start, items }
+    }
+
+    /// Calls `f` with the index of every photon in the cells the sphere (p, r) touches
+    /// (a superset of the photons within r; each at most once).
+    pub fn for_each_candidate(&self, p: Vec3, r: f32, mut f: impl FnMut(u32)) {
+        let lo = ((p - Vec3::splat(r)) * self.inv_cell).floor().as_ivec3();
+        let hi = ((p + Vec3::splat(r)) * self.inv_cell).floor().as_ivec3();
+        let mut seen = [usize::MAX; 27];
+        let mut n = 0;
+        for z in lo.z..=hi.z.min(lo.z + 2) {
+            for y in lo.y..=hi.y.min(lo.y + 2) {
+                for x in lo.x..=hi.x.min(lo.x + 2) {
+                    let b = cell_hash(IVec3::new(x, y, z), self.mask);
+                    if seen[..n].contains(&b) {
+                        continue;
+                    }
+                    seen[n] = b;
+                    n += 1;
+                    for &i in &self.items[self.start[b] as usize..self.start[b + 1] as usize] {
+                        f(i);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Photons within `r` of the visible point that arrived on its side: their count and
+/// Σ Φ f(wo, wi) (before the visible point's throughput).
+pub fn gather(world: &World, grid: &PhotonGrid, photons: &[RawPhoton], vp: &VisiblePoint, r: f32) -> (u64, DVec3) {
+    let bsdf = &world.scene.material(vp.tri).bsdf;
+    let r2 = r * r;
+    let (mut m, mut phi) = (0u64, DVec3::ZERO);
+    grid.for_each_candidate(vp.p, r, |i| {
+        let ph = &photons[i as usize];
+        if (ph.pos - vp.p).length_squared() > r2 || ph.normal.dot(vp.n) < NORMAL_COS || ph.dir.dot(vp.n) <= 0.0 {
+            return;
+        }
+        m += 1;
+        phi += (bsdf.eval(&vp.sp, vp.wo, ph.dir) * ph.power).as_dvec3();
+    });
+    (m, phi)
+}
+
+impl Integrator for SppmIntegrator {
+    fn name(&self) -> &'static str {
+        "sppm"
+    }
+
+    /// Not used: the pipeline renders progressive integrators through
+    /// [`Integrator::render_progressive`].
+    fn li(&self, _world: &World, _ray: &Ray, _sampler: &mut dyn Sampler, _stats: &mut TraversalStats) -> Color {
+        Color::ZERO
+    }
+
+    fn render_progressive(&mut self, world: &World, on_pass: OnPass) -> Option<Result<(Film, RenderStats)>> {
+        Some(self.run(world, on_pass))
+    }
+
+    fn stats(&self) -> BTreeMap<String, f64> {
+        self.counters.clone()
+    }
+}
+
+#[cfg(test)]
+#[path = "sppm_tests.rs"]
+mod tests;

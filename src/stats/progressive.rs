@@ -1,0 +1,179 @@
+//! Consistency of the progressive integrators: their error keeps falling at the rate
+//! Knaus & Zwicker (2011) derive for the radius-reduction parameter α.
+//!
+//! Scene: the `convergence` family's 1 × 1 area light one unit above a Lambertian
+//! floor, whose radiance ρ/π · E is exact (Lambert's formula). The reference of each
+//! pixel is the mean over an 8 × 8 grid of points in the pixel (the integrators
+//! jitter their camera rays); pixels that see the light's edge are left out.
+//!
+//! Each estimator sees the floor only through photons: `sppm` with
+//! `sppm_direct = "photons"` (first photon hits counted), `ppm` writing the direct
+//! visualisation of its direct map (`photons-direct`, box kernel, k large enough that
+//! the radius limits every estimate). With independent random numbers, variance
+//! falls as p^−α and the kernel's bias as r² ∝ p^(α−1), so the MSE after p passes
+//! falls as p^−min(α, 2(1−α)): p^−2/3 for α = 2/3. Initial radii are large (0.5
+//! against a light of size 1), so the bias matters from the first pass.
+//!
+//! - `progressive/{sppm,ppm}/alpha0.67/slope`: log–log slope of MSE against passes
+//!   (4 … 256, `--thorough` 4 … 1024) within [`SLOPE_TOL`] of −2/3.
+//! - `progressive/sppm/alpha0.8/slope`: the same for α = 0.8 (theory −0.4: the bias
+//!   term, which dominates here from the first pass), so the test sees the rate follow
+//!   α. (α < 2/3 is not tested: its bias falls faster than its variance, and the
+//!   slope only reaches −α after far more passes than a test can afford.)
+//! - `progressive/planted/{sppm,ppm}_alpha1/slope`: α = 1, the radius never shrinks:
+//!   the bias stays and the error stops falling; held to the −2/3 of a consistent
+//!   method, it must fail.
+
+use super::{FamilyReport, Outcome, Settings, TestRow};
+use crate::accel::TraversalStats;
+use crate::config::RenderConfig;
+use crate::integrator::Integrator;
+use crate::integrator::photon::Output;
+use crate::integrator::ppm::PpmIntegrator;
+use crate::integrator::sppm::SppmIntegrator;
+use crate::math::mean;
+use crate::plot::{LinePlot, Series, log_log_slope};
+use crate::registry::make_rr;
+use crate::world::World;
+use anyhow::{Result, anyhow};
+
+/// Largest distance of a fitted slope from the theoretical rate.
+pub const SLOPE_TOL: f64 = 0.15;
+/// Photon paths per pass.
+const PHOTONS: u64 = 4000;
+/// Initial radius (scene units; the light is 1 × 1 at height 1).
+const RADIUS: f32 = 0.5;
+
+/// Theoretical log–log slope of the MSE against passes for α (Knaus & Zwicker).
+pub fn theoretical_slope(alpha: f64) -> f64 {
+    -alpha.min(2.0 * (1.0 - alpha))
+}
+
+/// Exact mean radiance over each pixel (None where the pixel sees more than the floor).
+fn reference(w: &World) -> Vec<Option<f64>> {
+    let cam = &w.scene.camera;
+    let mut st = TraversalStats::default();
+    let n = 8;
+    (0..cam.width * cam.height)
+        .map(|p| {
+            let (x, y) = (p % cam.width, p / cam.width);
+            let mut sum = 0.0;
+            for i in 0..n * n {
+                let u = ((i % n) as f32 + 0.5) / n as f32;
+                let v = ((i / n) as f32 + 0.5) / n as f32;
+                let it = w.intersect(&cam.generate_ray(x as f32 + u, y as f32 + v), &mut st)?;
+                let m = w.material(&it);
+                if m.name != "floor" {
+                    return None;
+                }
+                sum += mean(m.bsdf.diffuse_albedo()) as f64 / std::f64::consts::PI * super::convergence::irradiance(it.p);
+            }
+            Some(sum / (n * n) as f64)
+        })
+        .collect()
+}
+
+/// MSE after each pass in `levels`.
+fn curve(w: &World, refs: &[Option<f64>], integrator: &mut dyn Integrator, levels: &[u32]) -> Result<Vec<(f64, f64)>> {
+    let mut out = Vec::new();
+    let mut on_pass = |p: u32, _: f64, film: &crate::film::Film| {
+        if !levels.contains(&p) {
+            return;
+        }
+        let (mut se, mut n) = (0.0f64, 0usize);
+        for (px, r) in film.pixels.iter().zip(refs) {
+            if let Some(r) = r {
+                se += (mean(*px) as f64 - r).powi(2);
+                n += 1;
+            }
+        }
+        out.push((p as f64, se / n.max(1) as f64));
+    };
+    integrator.render_progressive(w, &mut on_pass).ok_or_else(|| anyhow!("{} is not progressive", integrator.name()))??;
+    Ok(out)
+}
+
+fn config(integrator: &str, alpha: f32, passes: u32, seed: u64) -> RenderConfig {
+    RenderConfig {
+        integrator: integrator.into(),
+        sampler: "random".into(),
+        seed,
+        passes: Some(passes),
+        photons_per_pass: Some(PHOTONS),
+        alpha,
+        max_depth: Some(4),
+        // sppm: photons carry the direct light; ppm: radius-limited box estimates.
+        sppm_direct: if integrator == "sppm" { "photons".into() } else { "trace".into() },
+        sppm_radius: (integrator == "sppm").then_some(RADIUS),
+        max_radius: Some(RADIUS),
+        k: 1_000_000,
+        filter: "box".into(),
+        gather: "direct".into(),
+        disc: 1.0,
+        spp: 1,
+        caustic_photons: 0,
+        ..Default::default()
+    }
+}
+
+fn run_one(w: &World, refs: &[Option<f64>], cfg: &RenderConfig, levels: &[u32]) -> Result<Vec<(f64, f64)>> {
+    let rr = make_rr(&cfg.rr)?;
+    if cfg.integrator == "sppm" {
+        curve(w, refs, &mut SppmIntegrator::new(cfg, rr, true)?, levels)
+    } else {
+        let mut ppm = PpmIntegrator::new(cfg, true)?;
+        ppm.output = Output::PhotonsDirect;
+        curve(w, refs, &mut ppm, levels)
+    }
+}
+
+/// Runs the family.
+pub fn run(s: &Settings) -> Result<FamilyReport> {
+    let w = super::convergence::world()?;
+    let refs = reference(&w);
+    let levels: Vec<u32> = (2..=s.pick(8, 10)).map(|k| 1u32 << k).collect();
+    let passes = *levels.last().unwrap_or(&1);
+    let target = theoretical_slope(2.0 / 3.0);
+    let mut rows = Vec::new();
+    let mut series = Vec::new();
+    let cases: [(&str, &str, f32, Outcome); 5] = [
+        ("sppm/alpha0.67", "sppm", 2.0 / 3.0, Outcome::Pass),
+        ("ppm/alpha0.67", "ppm", 2.0 / 3.0, Outcome::Pass),
+        ("sppm/alpha0.8", "sppm", 0.8, Outcome::Pass),
+        ("planted/sppm_alpha1", "sppm", 1.0, Outcome::Fail),
+        ("planted/ppm_alpha1", "ppm", 1.0, Outcome::Fail),
+    ];
+    for (i, (name, integrator, alpha, expected)) in cases.into_iter().enumerate() {
+        let c = run_one(&w, &refs, &config(integrator, alpha, passes, 0x5EED + i as u64), &levels)?;
+        let slope = log_log_slope(&c).unwrap_or(f64::NAN);
+        // A planted control is held to the rate of the consistent method it imitates.
+        let want = if expected == Outcome::Fail { target } else { theoretical_slope(alpha as f64) };
+        rows.push(TestRow::new(format!("progressive/{name}/slope"), slope, None, expected, (slope - want).abs() <= SLOPE_TOL));
+        series.push(Series { name: format!("{integrator}, alpha {alpha:.2} (slope {slope:.2}; theory {want:.2})"), points: c });
+    }
+    let plots = vec![(
+        "progressive".to_string(),
+        LinePlot {
+            title: "Progressive photon mapping, area light over a floor: error vs passes".into(),
+            x_label: "passes".into(),
+            y_label: "MSE".into(),
+            log_x: true,
+            log_y: true,
+            series,
+        },
+    )];
+    Ok(FamilyReport { rows, plots })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn theoretical_rates() {
+        assert!((theoretical_slope(2.0 / 3.0) + 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(theoretical_slope(0.5), -0.5);
+        assert_eq!(theoretical_slope(1.0), 0.0);
+        assert!((theoretical_slope(0.9) + 0.2).abs() < 1e-12);
+    }
+}
