@@ -58,6 +58,13 @@ impl BlockReport {
 /// right and bottom edges are dropped), judging blocks whose reference mean exceeds
 /// `min_reference`.
 pub fn compare_blocks(test: &Film, reference: &Film, size: u32, min_reference: f64) -> Result<BlockReport> {
+    compare_blocks_below(test, reference, size, min_reference, f64::INFINITY)
+}
+
+/// [`compare_blocks`] that also skips blocks holding a reference pixel brighter than
+/// `max_pixel` (mean of its channels): blocks on an emitter's edge, whose error is
+/// the sampling of the emitter's outline, not of the light it sheds.
+pub fn compare_blocks_below(test: &Film, reference: &Film, size: u32, min_reference: f64, max_pixel: f64) -> Result<BlockReport> {
     if (test.width, test.height) != (reference.width, reference.height) {
         bail!("image sizes differ: {}x{} vs {}x{}", test.width, test.height, reference.width, reference.height);
     }
@@ -67,11 +74,12 @@ pub fn compare_blocks(test: &Film, reference: &Film, size: u32, min_reference: f
     let mut blocks = Vec::new();
     for by in 0..reference.height / size {
         for bx in 0..reference.width / size {
-            let (mut st, mut sr, mut sd, mut sd2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            let (mut st, mut sr, mut sd, mut sd2, mut peak) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
             for y in by * size..(by + 1) * size {
                 for x in bx * size..(bx + 1) * size {
                     let (t, r) = (test.get(x, y).as_dvec3(), reference.get(x, y).as_dvec3());
                     let (mt, mr) = (t.element_sum() / 3.0, r.element_sum() / 3.0);
+                    peak = peak.max(mr);
                     st += mt;
                     sr += mr;
                     sd += mt - mr;
@@ -80,7 +88,7 @@ pub fn compare_blocks(test: &Film, reference: &Film, size: u32, min_reference: f
             }
             let n = (size * size) as f64;
             let (mt, mr) = (st / n, sr / n);
-            if mr <= min_reference {
+            if mr <= min_reference || peak > max_pixel {
                 continue;
             }
             let var = if n > 1.0 { ((sd2 - sd * sd / n) / (n - 1.0)).max(0.0) } else { 0.0 };
@@ -121,5 +129,8 @@ mod tests {
         assert!((w.rel() - 0.1).abs() < 1e-6);
         assert_eq!(rep.outliers(3.0, 0.05).len(), 1);
         assert!(compare_blocks(&t, &Film::new(8, 8), 16, 0.0).is_err());
+        // A block with an emitter pixel is skipped on request.
+        r.pixels[0] = Vec3::splat(20.0);
+        assert_eq!(compare_blocks_below(&t, &r, 16, 0.005, 2.0).unwrap().blocks.len(), 2);
     }
 }

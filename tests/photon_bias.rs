@@ -2,7 +2,7 @@
 //! of zero-thickness walls lit from outside (`leaky-box`), glossy surfaces
 //! (`cornell-glossy`) and contacts (`cornell-contact`).
 //!
-//! Images are compared on 16-px block means over the blocks `path` does not leave
+//! Images are compared on 16-px (contacts: 8-px) block means over the blocks `path` does not leave
 //! black (reference mean > 0.005). A block passes when its difference is within
 //! 4 standard errors plus a floor proportional to the reference. The standard error
 //! comes from the spread of the per-pixel differences inside the block (the pixel
@@ -10,7 +10,7 @@
 //! underestimate, which the floor absorbs). The floor is the residual bias of the
 //! stated photon budget, stated per test; the image mean must be within 1 %.
 
-use photonlab::compare::{BlockReport, compare_blocks};
+use photonlab::compare::{BlockReport, compare_blocks, compare_blocks_below};
 use photonlab::config::RenderConfig;
 use photonlab::film::Film;
 use photonlab::pipeline::render_scene;
@@ -82,13 +82,15 @@ fn glossy_surfaces_match_path() {
 }
 
 /// A cube standing on the floor and a sphere in a corner, default photon settings
-/// (200k photons, 16 spp, floor 8 %), and the same for every gather method at a
-/// budget where it is affordable.
+/// (200k photons, 16 spp) at 128² on 8-px blocks, skipping the blocks on the light's
+/// outline (sampling of the emitter's edge, not of indirect light); floor 8 %. Before
+/// the cache had gradients, neighbour clamping, pixel-footprint radii and 256 rays per
+/// entry, the block where the cube meets the floor was 23 % too bright.
 #[test]
 fn contacts_match_path() {
     let scene = builtin("cornell-contact").unwrap();
-    let res = [96, 96];
-    let reference = path_reference(&scene, res, 384);
+    let res = [128, 128];
+    let reference = path_reference(&scene, res, 256);
     let img = photon(&scene, RenderConfig { spp: 16, resolution: Some(res), ..Default::default() });
-    check_blocks("cornell-contact", &compare_blocks(&img, &reference, 16, 0.005).unwrap(), 0.08);
+    check_blocks("cornell-contact", &compare_blocks_below(&img, &reference, 8, 0.005, 1.0).unwrap(), 0.08);
 }
