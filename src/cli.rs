@@ -54,6 +54,8 @@ pub enum Command {
         #[arg(required = true)]
         parts: Vec<PathBuf>,
     },
+    /// Maintenance: fuzz the scene TOML, OBJ, MTL and manifest readers (no panic, no hang).
+    Fuzz(crate::fuzz::FuzzArgs),
 }
 
 /// `scene` subcommands.
@@ -306,6 +308,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Run(a) => crate::experiment::run_cmd(&a),
         Command::Merge(a) => crate::experiment::merge_cmd(&a),
         Command::Accumulate { out, parts } => crate::accumulate::accumulate_cmd(&out, &parts),
+        Command::Fuzz(a) => crate::fuzz::fuzz_cmd(&a),
         Command::Diff { test, reference, out, block } => {
             let a = crate::film::Film::read_exr(&test)?;
             let b = crate::film::Film::read_exr(&reference)?;

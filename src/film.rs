@@ -87,7 +87,7 @@ impl Film {
         write_atomic(path, &buf)
     }
 
-    /// Writes an OpenEXR file (float32 linear RGB).
+    /// Writes an OpenEXR file (float32 linear RGB), byte-identical for identical pixels.
     pub fn write_exr(&self, path: &Path) -> Result<()> {
         use exr::prelude::*;
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -95,11 +95,19 @@ impl Film {
         }
         let w = self.width as usize;
         let tmp = temp_path(path);
-        write_rgb_file(&tmp, w, self.height as usize, |x, y| {
+        // Increasing line order, compressed sequentially: the default (unspecified
+        // order, parallel compression) writes tiles in the order threads finish them,
+        // so two files of the same image could differ in bytes.
+        let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
             let c = self.pixels[y * w + x];
             (c.x, c.y, c.z)
-        })
-        .with_context(|| format!("{}: cannot write EXR", tmp.display()))?;
+        });
+        let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+        Image::from_encoded_channels((w, self.height as usize), encoding, channels)
+            .write()
+            .non_parallel()
+            .to_file(&tmp)
+            .with_context(|| format!("{}: cannot write EXR", tmp.display()))?;
         std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot rename into place", path.display()))?;
         Ok(())
     }
@@ -151,6 +159,49 @@ mod tests {
         let g = Film::read_exr(&exr).unwrap();
         assert_eq!(f, g);
         assert!(png.exists());
+        std::fs::remove_dir_all(dir).ok();
+    }
+
+    /// The chunk offset table of a single-part scan-line or tiled EXR written by
+    /// `write_exr`: offsets must increase (chunks in file order = index order).
+    fn chunk_offsets(bytes: &[u8], chunks: usize) -> Vec<u64> {
+        // Header: magic + version (8 bytes), attributes until an empty name (a 0 byte
+        // where a name would start).
+        let mut i = 8;
+        while bytes[i] != 0 {
+            let name_end = i + bytes[i..].iter().position(|&b| b == 0).unwrap();
+            let type_end = name_end + 1 + bytes[name_end + 1..].iter().position(|&b| b == 0).unwrap();
+            let size = u32::from_le_bytes(bytes[type_end + 1..type_end + 5].try_into().unwrap()) as usize;
+            i = type_end + 5 + size;
+        }
+        i += 1;
+        (0..chunks).map(|k| u64::from_le_bytes(bytes[i + 8 * k..i + 8 * k + 8].try_into().unwrap())).collect()
+    }
+
+    #[test]
+    fn exr_bytes_are_reproducible_and_chunks_in_order() {
+        let dir = std::env::temp_dir().join(format!("photonlab-film-bytes-{}", std::process::id()));
+        // 5 × 4 tiles of 64 px, noisy so compression time varies between tiles.
+        let mut f = Film::new(300, 200);
+        let mut s = 1u32;
+        for p in f.pixels.iter_mut() {
+            s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+            *p = Color::splat((s >> 8) as f32 / (1u32 << 24) as f32);
+        }
+        let mut prev: Option<Vec<u8>> = None;
+        for k in 0..8 {
+            let path = dir.join(format!("t{k}.exr"));
+            f.write_exr(&path).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            let offs = chunk_offsets(&bytes, 20);
+            assert!(offs.windows(2).all(|w| w[0] < w[1]), "chunks out of order: {offs:?}");
+            assert!(*offs.last().unwrap() < bytes.len() as u64);
+            if let Some(p) = &prev {
+                assert!(p == &bytes, "two writes of one image differ");
+            }
+            prev = Some(bytes);
+        }
+        assert_eq!(Film::read_exr(&dir.join("t0.exr")).unwrap(), f);
         std::fs::remove_dir_all(dir).ok();
     }
 }

@@ -29,6 +29,7 @@ pub mod compare;
 pub mod config;
 pub mod experiment;
 pub mod film;
+pub mod fuzz;
 pub mod gather;
 pub mod geometry;
 pub mod integrator;

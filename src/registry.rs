@@ -110,7 +110,7 @@ pub fn make_integrator_with(cfg: &RenderConfig, quiet: bool) -> Result<Box<dyn I
         "path" | "photon" => {
             crate::integrator::progressive::reject_for_fixed_budget(cfg)?;
             match cfg.integrator.as_str() {
-                "path" => Box::new(PathIntegrator { max_depth, rr }),
+                "path" => Box::new(PathIntegrator { max_depth, rr, output: Default::default() }),
                 _ => Box::new(PhotonIntegrator::new(cfg, rr, quiet)?),
             }
         }

@@ -38,8 +38,9 @@ pub struct AccelArgs {
     /// Tracing (and build) threads; each traces a contiguous range.
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
-    /// Accelerators to time, comma-separated (the first also generates the rays).
-    #[arg(long, value_delimiter = ',', default_value = "bvh")]
+    /// Accelerators to time, comma-separated (the first also generates the rays);
+    /// default: `render`'s default accelerator.
+    #[arg(long, value_delimiter = ',', default_value = "bvh8")]
     pub accel: Vec<String>,
     /// Builds per accelerator; the best time is reported.
     #[arg(long, default_value_t = 1)]

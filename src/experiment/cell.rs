@@ -186,6 +186,12 @@ pub struct CellRecord {
     pub height: u32,
     /// Errors against the reference.
     pub metrics: ErrorMetrics,
+    /// Robust and block errors against the reference (absent in older records).
+    #[serde(default)]
+    pub robust: super::metrics::RobustMetrics,
+    /// Errors of the measured component (manifest `component`), if any.
+    #[serde(default)]
+    pub component: Option<super::metrics::ComponentMetrics>,
     /// Acceleration-structure build, seconds.
     pub accel_build_s: f64,
     /// Integrator pre-pass (photon pass, precomputation, cache prefill), seconds.
@@ -224,6 +230,8 @@ pub struct CellPaths {
     pub png: PathBuf,
     /// False-colour relative error.
     pub relerr: PathBuf,
+    /// Block-averaged signed relative error (diverging colours).
+    pub signed: PathBuf,
 }
 
 impl CellPaths {
@@ -235,6 +243,7 @@ impl CellPaths {
             exr: d.join(format!("{stem}.exr")),
             png: d.join(format!("{stem}.png")),
             relerr: d.join(format!("{stem}.relerr.png")),
+            signed: d.join(format!("{stem}.signed.png")),
         }
     }
 }
@@ -249,7 +258,15 @@ pub fn finished(dir: &Path, cell: &Cell, reference_key: &str) -> Option<CellReco
 }
 
 /// Renders one cell, writes its images and then its record (atomically, last).
-pub fn run_cell(scene: &Scene, cell: &Cell, reference: &Film, reference_key: &str, dir: &Path, quiet: bool) -> Result<CellRecord> {
+pub fn run_cell(
+    scene: &Scene,
+    cell: &Cell,
+    reference: &Film,
+    component_ref: Option<&Film>,
+    reference_key: &str,
+    dir: &Path,
+    quiet: bool,
+) -> Result<CellRecord> {
     // Progressive integrators: the error after each pass of `record_passes`.
     let mut progress: Vec<(u32, f64, ErrorMetrics)> = Vec::new();
     let record = &cell.config.record_passes;
@@ -260,17 +277,28 @@ pub fn run_cell(scene: &Scene, cell: &Cell, reference: &Film, reference_key: &st
             progress.push((p, t, e));
         }
     };
+    let aovs: Vec<String> = cell.component.iter().cloned().collect();
     let mut o =
-        render_scene_observed(scene.clone(), &cell.config, quiet, &[], &mut on_pass).with_context(|| format!("cell `{}`", cell.stem))?;
+        render_scene_observed(scene.clone(), &cell.config, quiet, &aovs, &mut on_pass).with_context(|| format!("cell `{}`", cell.stem))?;
     for (p, t, e) in progress {
         o.extra.insert(format!("{PASS_TIME}{p}"), o.timings.accel_build_s + o.timings.preprocess_s + t);
         o.extra.insert(format!("{PASS_RELMSE}{p}"), e.relmse);
     }
+    // The measured component (an extra render pass after the timed one).
+    let component = match (o.aovs.pop(), component_ref) {
+        (Some((name, img)), Some(r)) => {
+            img.write_exr(&CellPaths::new(dir, &cell.stem).exr.with_extension(format!("{name}.exr")))?;
+            Some(super::metrics::component_metrics(&name, &img, r)?)
+        }
+        _ => None,
+    };
     let metrics = error_metrics(&o.film, reference).with_context(|| format!("cell `{}`", cell.stem))?;
     let paths = CellPaths::new(dir, &cell.stem);
     o.film.write_exr(&paths.exr)?;
     o.film.write_png(&paths.png)?;
     write_atomic(&paths.relerr, &relerr_png(&o.film, reference)?)?;
+    write_atomic(&paths.signed, &super::metrics::signed_png(&o.film, reference)?)?;
+    let robust = super::metrics::robust_metrics(&o.film, reference)?;
     let t = &o.timings;
     let rays = o.rays();
     let rec = CellRecord {
@@ -285,6 +313,8 @@ pub fn run_cell(scene: &Scene, cell: &Cell, reference: &Film, reference_key: &st
         width: o.film.width,
         height: o.film.height,
         metrics,
+        robust,
+        component,
         accel_build_s: t.accel_build_s,
         preprocess_s: t.preprocess_s,
         render_s: t.render_s,

@@ -25,6 +25,10 @@ use toml::{Spanned, Value};
 /// the cells' default seed so the reference's noise is not correlated with theirs.
 pub const REFERENCE_SEED: u64 = 0x5EF_E2E4_CE00;
 
+/// Most cells a manifest may expand to (a typo such as `repeats = 99999999` is an
+/// error, not hours of expansion).
+pub const MAX_CELLS: usize = 100_000;
+
 /// Keys that belong at the top level of a manifest, not in a configuration.
 const TOP_LEVEL_ONLY: &[&str] = &["resolution"];
 
@@ -42,6 +46,7 @@ struct RawManifest {
     base: Option<Spanned<SpannedTable>>,
     sweep: Option<Spanned<SpannedTable>>,
     configs: Option<Spanned<Vec<Spanned<SpannedTable>>>>,
+    component: Option<Spanned<String>>,
 }
 
 /// Where the reference image comes from.
@@ -174,6 +179,8 @@ pub struct Cell {
     pub repeat: u32,
     /// The complete configuration rendered.
     pub config: RenderConfig,
+    /// The part of the image measured (`direct`, `indirect`, `caustic`), if not all.
+    pub component: Option<String>,
 }
 
 /// A parsed, validated and expanded manifest.
@@ -203,6 +210,9 @@ pub struct Manifest {
     pub repeats: u32,
     /// All cells in expansion order.
     pub cells: Vec<Cell>,
+    /// `component`: the part of the image measured, rendered as the integrators'
+    /// extra image of that name, for the cells and the reference alike.
+    pub component: Option<String>,
 }
 
 pub use crate::scene::loader::line_col;
@@ -238,6 +248,28 @@ pub fn value_eq(a: &Value, b: &Value) -> bool {
 fn slug(s: &str) -> String {
     let out: String = s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '.' || c == '-' { c } else { '_' }).collect();
     out.trim_matches('_').to_string()
+}
+
+/// Components a manifest can measure (extra images of `path` and `photon`).
+pub const COMPONENTS: &[&str] = &["direct", "indirect", "caustic"];
+
+/// Checks `component`: a known name that every configuration's integrator (and a
+/// rendered reference's) can write.
+fn check_component(c: &Spanned<String>, loc: &Loc, configs: &[(String, RenderConfig)], reference: &ReferenceSpec) -> Result<String> {
+    let name = c.get_ref();
+    let at = loc.at(c.span());
+    if !COMPONENTS.contains(&name.as_str()) {
+        bail!("{at}: component `{name}` is not one of {}", COMPONENTS.join(", "));
+    }
+    let refcfg = match reference {
+        ReferenceSpec::Render(r) => Some(r.as_ref()),
+        ReferenceSpec::File(_) => bail!("{at}: component `{name}` needs a rendered reference, not [reference] file"),
+    };
+    for cfg in configs.iter().map(|(_, c)| c).chain(refcfg) {
+        let mut integ = registry::make_integrator_with(cfg, true).map_err(|e| anyhow!("{at}: {e:#}"))?;
+        integ.set_output(name).map_err(|e| anyhow!("{at}: component `{name}`: {e:#}"))?;
+    }
+    Ok(name.clone())
 }
 
 /// Checks one key/value pair against [`RenderConfig`] (unknown key or wrong type).
@@ -390,6 +422,14 @@ impl Manifest {
         if repeats == 0 {
             bail!("{}: repeats must be at least 1", loc.at(repeats_span));
         }
+        if (repeats as usize).saturating_mul(drafts.len()).saturating_mul(scenes.len()) > MAX_CELLS {
+            bail!(
+                "{}: {} configuration(s) × {} scene(s) × {repeats} repeats is more than {MAX_CELLS} cells",
+                loc.at(repeats_span),
+                drafts.len(),
+                scenes.len()
+            );
+        }
 
         // Build and validate every cell before anything renders.
         let mut configs = Vec::new();
@@ -422,6 +462,10 @@ impl Manifest {
         }
         // Several scenes: the scene is the outermost axis of every configuration.
         let multi = scenes.len() > 1;
+        let component = match &raw.component {
+            Some(c) => Some(check_component(c, &loc, &configs, &reference)?),
+            None => None,
+        };
         let mut cells = Vec::new();
         for (si, sc) in scenes.iter().enumerate() {
             for (di, (d, (stem, cfg))) in drafts.iter().zip(&configs).enumerate() {
@@ -446,6 +490,7 @@ impl Manifest {
                         values: values.clone(),
                         repeat: r,
                         config: c,
+                        component: component.clone(),
                     });
                 }
             }
@@ -470,6 +515,7 @@ impl Manifest {
             numeric_axes,
             repeats,
             cells,
+            component,
         })
     }
 
@@ -552,7 +598,8 @@ fn expand_sweep(s: &Spanned<SpannedTable>, loc: &Loc, repeats: &mut Option<(u32,
         }
     }
     let numeric: Vec<bool> = axes.iter().map(|a| a.1.iter().all(|v| matches!(v, Value::Integer(_) | Value::Float(_)))).collect();
-    let total: usize = axes.iter().map(|a| a.1.len()).product();
+    let total = axes.iter().try_fold(1usize, |t, a| t.checked_mul(a.1.len()).filter(|&t| t <= MAX_CELLS));
+    let Some(total) = total else { bail!("{}: [sweep] expands to more than {MAX_CELLS} configurations", loc.at(s.span())) };
     let mut drafts = Vec::new();
     for flat in 0..total {
         // Mixed-radix digits, the last axis varying fastest.

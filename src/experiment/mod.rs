@@ -11,9 +11,13 @@
 //! strategies need no change here.
 
 pub mod cell;
+pub mod html;
 pub mod manifest;
+pub mod metrics;
 pub mod output;
 pub mod plots;
+pub mod refnoise;
+pub mod summary;
 
 use crate::film::{Film, write_atomic};
 use crate::scene::Scene;
@@ -129,6 +133,15 @@ pub struct RefInfo {
     pub description: String,
     /// Image file (EXR) relative to the experiment directory; a PNG sits beside it.
     pub file: String,
+    /// The reference's own noise as relative MSE (from two half-renders), if known.
+    #[serde(default)]
+    pub noise_relmse: Option<f64>,
+    /// The measured component's reference image (EXR, PNG beside it), if any.
+    #[serde(default)]
+    pub component_file: Option<String>,
+    /// Its noise as relative MSE.
+    #[serde(default)]
+    pub component_noise_relmse: Option<f64>,
 }
 
 /// 64-bit FNV-1a, stable across platforms and compiler versions (cache keys).
@@ -201,8 +214,8 @@ pub fn reference_key(scene: &Scene, cfg: &crate::config::RenderConfig) -> Result
 }
 
 /// The reference image: cached render under `refs_dir` or the manifest's file.
-/// Returns (image, key, description, rendered now); the image is `None` when
-/// `finish` is false and other shards' reference parts are still missing
+/// Returns (images and noise, key, description, rendered now); the images are `None`
+/// when `finish` is false and other shards' reference parts are still missing
 /// (see [`crate::accumulate::reference_from_parts`]).
 fn ensure_reference(
     m: &Manifest,
@@ -211,7 +224,7 @@ fn ensure_reference(
     shard: Option<Shard>,
     finish: bool,
     quiet: bool,
-) -> Result<(Option<Film>, String, String, bool)> {
+) -> Result<(Option<refnoise::RefImages>, String, String, bool)> {
     match &m.reference {
         ReferenceSpec::File(p) => {
             let bytes = std::fs::read(p).map_err(|e| anyhow!("{}: [reference] file {}: {e}", m.path.display(), p.display()))?;
@@ -229,22 +242,35 @@ fn ensure_reference(
             }
             let mut h = Fnv::default();
             h.write(&bytes);
-            Ok((Some(film), format!("file-{:016x}", h.0), format!("file `{}`", p.display()), false))
+            let images = refnoise::RefImages { film, noise: None, component: None };
+            Ok((Some(images), format!("file-{:016x}", h.0), format!("file `{}`", p.display()), false))
         }
         ReferenceSpec::Render(cfg) => {
-            let key = reference_key(scene, cfg)?;
+            let mut key = reference_key(scene, cfg)?;
+            if let Some(c) = &m.component {
+                key = format!("{key}-{c}");
+            }
             let path = refs_dir.join(format!("{}-{key}.exr", manifest_slug(&scene.name)));
             let desc = format!(
-                "`{}` integrator, {} spp, seed {} (cached as `references/{}`)",
+                "`{}` integrator, {} spp, seed {} (noise from its two halves of samples), cached as `references/{}`",
                 cfg.integrator,
                 cfg.spp,
                 cfg.seed,
                 file_name(&path)
             );
+            let comp_path = m.component.as_ref().map(|c| path.with_extension(format!("{c}.exr")));
             if let Ok(f) = Film::read_exr(&path)
                 && [f.width, f.height] == m.resolution
             {
-                return Ok((Some(f), key, desc, false));
+                let meta: Option<serde_json::Value> =
+                    std::fs::read_to_string(path.with_extension("json")).ok().and_then(|t| serde_json::from_str(&t).ok());
+                let num = |k: &str| meta.as_ref().and_then(|v| v.get(k)).and_then(|n| n.as_f64());
+                let comp = comp_path.as_ref().map(|p| Film::read_exr(p).ok().map(|f| (f, num("component_noise_relmse"))));
+                // A component reference must be cached too, else render both again.
+                if comp.as_ref().is_none_or(|c| c.is_some()) {
+                    let images = refnoise::RefImages { film: f, noise: num("noise_relmse"), component: comp.flatten() };
+                    return Ok((Some(images), key, desc, false));
+                }
             }
             if !quiet {
                 eprintln!("rendering the reference ({} integrator, {} spp) → {}", cfg.integrator, cfg.spp, path.display());
@@ -252,17 +278,26 @@ fn ensure_reference(
             let t0 = Instant::now();
             // Exact sums: the same bits whether rendered whole or as the shards' parts.
             let shard = shard.map(|s| (s.index, s.count));
-            let (film, rendered) = crate::accumulate::reference_from_parts(scene, cfg, &key, &path, shard, finish, quiet)
-                .context("rendering the reference")?;
+            let (film, noise, rendered) =
+                refnoise::reference_with_noise(scene, cfg, &key, &path, shard, finish, quiet).context("rendering the reference")?;
             let Some(film) = film else { return Ok((None, key, desc, rendered)) };
-            film.write_exr(&path)?;
-            film.write_png(&path.with_extension("png"))?;
+            let component = match &m.component {
+                Some(c) => Some(refnoise::component_in_halves(scene, cfg, c, quiet).context("rendering the reference's component")?),
+                None => None,
+            };
+            let images = refnoise::RefImages { film, noise, component };
+            images.film.write_exr(&path)?;
+            images.film.write_png(&path.with_extension("png"))?;
+            if let (Some(p), Some((f, _))) = (&comp_path, &images.component) {
+                f.write_pair(p)?;
+            }
             let meta = serde_json::json!({
                 "key": key, "scene": scene.name, "config": cfg, "seconds": t0.elapsed().as_secs_f64(),
-                "version": env!("CARGO_PKG_VERSION"),
+                "version": env!("CARGO_PKG_VERSION"), "noise_relmse": images.noise,
+                "component": m.component, "component_noise_relmse": images.component.as_ref().and_then(|c| c.1),
             });
             write_atomic(&path.with_extension("json"), serde_json::to_string_pretty(&meta)?.as_bytes())?;
-            Ok((Some(film), key, desc, rendered))
+            Ok((Some(images), key, desc, rendered))
         }
     }
 }
@@ -304,21 +339,28 @@ pub fn run(args: &RunArgs) -> Result<RunReport> {
     let mut reference_rendered = false;
     let mut pending = 0;
     for (spec, scene) in m.scenes.iter().zip(&scenes) {
-        let (film, key, description, rendered) =
+        let (images, key, description, rendered) =
             ensure_reference(&m, scene, &references_dir(&out), args.shard, !args.reference_only, args.quiet)?;
         reference_rendered |= rendered;
-        let Some(film) = film else {
+        let Some(images) = images else {
             pending += 1;
             continue;
         };
         let file = format!("reference-{}.exr", manifest_slug(&spec.name()));
         // The experiment directory is self-contained: merge needs only what is inside it.
-        if Film::read_exr(&out.join(&file)).ok().as_ref() != Some(&film) {
-            film.write_exr(&out.join(&file))?;
-            film.write_png(&out.join(&file).with_extension("png"))?;
+        let mut own = vec![(file.clone(), &images.film)];
+        let component_file = m.component.as_ref().map(|c| format!("reference-{}.{c}.exr", manifest_slug(&spec.name())));
+        if let (Some(cf), Some((f, _))) = (&component_file, &images.component) {
+            own.push((cf.clone(), f));
         }
-        references.push(film);
-        infos.push(RefInfo { scene: spec.name(), key, description, file });
+        for (name, film) in own {
+            if Film::read_exr(&out.join(&name)).ok().as_ref() != Some(film) {
+                film.write_pair(&out.join(&name))?;
+            }
+        }
+        let (noise_relmse, component_noise_relmse) = (images.noise, images.component.as_ref().and_then(|c| c.1));
+        references.push(images);
+        infos.push(RefInfo { scene: spec.name(), key, description, file, noise_relmse, component_file, component_noise_relmse });
     }
     if pending > 0 {
         // --reference-only under --shard: this task's reference parts are done.
@@ -355,7 +397,8 @@ pub fn run(args: &RunArgs) -> Result<RunReport> {
             );
         }
         // The renderer's own bars (photon pass, cache, render) show inside the cell.
-        let rec = pb.suspend(|| run_cell(&scenes[c.scene], c, &references[c.scene], &infos[c.scene].key, &out, args.quiet))?;
+        let (reference, comp_ref) = (&references[c.scene].film, references[c.scene].component.as_ref().map(|x| &x.0));
+        let rec = pb.suspend(|| run_cell(&scenes[c.scene], c, reference, comp_ref, &infos[c.scene].key, &out, args.quiet))?;
         if !args.quiet {
             log(
                 &pb,
@@ -420,7 +463,7 @@ pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
     for c in &m.cells {
         let Some(r) = info.references.get(c.scene) else { bail!("{}: run.json lists fewer scenes than the manifest", dir.display()) };
         match finished(dir, c, &r.key) {
-            Some(rec) => rows.push(Row { rec, split: None }),
+            Some(rec) => rows.push(Row { rec, split: None, repeats: m.repeats as usize }),
             None => missing.push(c.stem.clone()),
         }
     }
@@ -463,13 +506,11 @@ pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
     output::write_jsonl(&dir.join("cells.jsonl"), &rows)?;
     let stats = output::aggregate(&rows);
     let plots = plots::make_plots(dir, &m, &stats)?;
-    output::write_summary(
-        &dir.join("summary.md"),
-        &output::SummaryInfo { manifest: &m, references: &info.references, plots: &plots },
-        &stats,
-    )?;
+    let sinfo = summary::SummaryInfo { manifest: &m, references: &info.references, plots: &plots };
+    let md = summary::write_summary(&dir.join("summary.md"), &sinfo, &stats)?;
+    html::write_report(dir, &sinfo, &rows, &md)?;
     if !quiet {
-        eprintln!("wrote {}", dir.join("summary.md").display());
+        eprintln!("wrote {} and {}", dir.join("summary.md").display(), dir.join("index.html").display());
     }
     Ok(())
 }
@@ -521,7 +562,16 @@ pub fn import_cells(dir: &Path, from: &Path) -> Result<usize> {
             continue;
         }
         let (src, dst) = (CellPaths::new(from, &c.stem), CellPaths::new(dir, &c.stem));
-        for (a, b) in [(&src.exr, &dst.exr), (&src.png, &dst.png), (&src.relerr, &dst.relerr), (&src.json, &dst.json)] {
+        let comp = |p: &CellPaths| m.component.as_ref().map_or_else(|| p.exr.clone(), |c| p.exr.with_extension(format!("{c}.exr")));
+        let (sc, dc) = (comp(&src), comp(&dst));
+        for (a, b) in [
+            (&src.exr, &dst.exr),
+            (&src.png, &dst.png),
+            (&src.relerr, &dst.relerr),
+            (&src.signed, &dst.signed),
+            (&sc, &dc),
+            (&src.json, &dst.json),
+        ] {
             if a.is_file() {
                 let bytes = std::fs::read(a).with_context(|| format!("{}: cannot read", a.display()))?;
                 write_atomic(b, &bytes)?;

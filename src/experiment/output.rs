@@ -1,13 +1,13 @@
-//! Tables and summary of an experiment: `cells.csv`, `cells.jsonl` (one row per cell
-//! and repeat) and `summary.md`. Columns are documented in the README ("## Experiments").
+//! Tables of an experiment: `cells.csv` and `cells.jsonl` (one row per cell and
+//! repeat), and the per-configuration means the summary, plots and report use.
+//! Columns are documented in the README ("## Experiments").
 
 use super::cell::{BiasVariance, CellRecord};
-use super::manifest::Manifest;
+use super::metrics::{ComponentMetrics, RobustMetrics};
 use crate::film::write_atomic;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use serde_json::Value as Json;
 use std::collections::{BTreeMap, BTreeSet};
-use std::fmt::Write as _;
 use std::path::Path;
 
 /// A finished cell with the bias/variance split of its configuration.
@@ -17,6 +17,8 @@ pub struct Row {
     pub rec: CellRecord,
     /// Bias/variance split of its configuration (repeats ≥ 2).
     pub split: Option<BiasVariance>,
+    /// Repeats of its configuration.
+    pub repeats: usize,
 }
 
 /// One configuration averaged over its repeats.
@@ -54,6 +56,20 @@ pub struct ConfigStats {
     pub extra: BTreeMap<String, f64>,
     /// Bias/variance split.
     pub split: Option<BiasVariance>,
+    /// Robust errors: means over repeats, except `max_pixel_share` (largest) and
+    /// `worst_block` (the repeat with the largest magnitude).
+    pub robust: RobustMetrics,
+    /// Key of the reference the errors are measured against.
+    pub reference_key: String,
+    /// Errors of the measured component, means over repeats (worst block: largest magnitude).
+    pub component: Option<ComponentMetrics>,
+}
+
+/// Whether a bias² estimate is resolved: positive and above the noise of the mean
+/// image it was measured on (variance / repeats), which the unbiased estimator
+/// subtracts and which dominates it otherwise.
+pub fn bias_resolved(b: &BiasVariance, repeats: usize) -> bool {
+    b.rel_bias2 > 0.0 && b.rel_bias2 > b.rel_variance / repeats.max(1) as f64
 }
 
 /// Averages rows per configuration, in configuration order.
@@ -90,9 +106,35 @@ pub fn aggregate(rows: &[Row]) -> Vec<ConfigStats> {
                 rays: mean(&|r| (r.camera_rays + r.shadow_rays) as f64),
                 extra,
                 split: rs[0].split,
+                robust: RobustMetrics {
+                    relmse_trimmed: mean(&|r| r.robust.relmse_trimmed),
+                    smape: mean(&|r| r.robust.smape),
+                    max_pixel_share: rs.iter().map(|r| r.rec.robust.max_pixel_share).fold(0.0, f64::max),
+                    ..rs.iter().map(|r| r.rec.robust).max_by(|a, b| a.worst_block.abs().total_cmp(&b.worst_block.abs())).unwrap_or_default()
+                },
+                reference_key: first.reference_key.clone(),
+                component: mean_component(&rs),
             }
         })
         .collect()
+}
+
+fn mean_component(rs: &[&Row]) -> Option<ComponentMetrics> {
+    let cs: Vec<&ComponentMetrics> = rs.iter().filter_map(|r| r.rec.component.as_ref()).collect();
+    let first = cs.first()?;
+    let n = cs.len() as f64;
+    let mean = |f: &dyn Fn(&ComponentMetrics) -> f64| cs.iter().map(|c| f(c)).sum::<f64>() / n;
+    let worst = cs.iter().map(|c| c.robust).max_by(|a, b| a.worst_block.abs().total_cmp(&b.worst_block.abs())).unwrap_or_default();
+    Some(ComponentMetrics {
+        name: first.name.clone(),
+        relmse: mean(&|c| c.relmse),
+        robust: RobustMetrics {
+            relmse_trimmed: mean(&|c| c.robust.relmse_trimmed),
+            smape: mean(&|c| c.robust.smape),
+            max_pixel_share: cs.iter().map(|c| c.robust.max_pixel_share).fold(0.0, f64::max),
+            ..worst
+        },
+    })
 }
 
 /// The fixed leading columns of `cells.csv`.
@@ -110,10 +152,22 @@ pub const FIXED_COLUMNS: &[&str] = &[
     "mse",
     "relmse",
     "mae",
+    "relmse_trimmed",
+    "smape",
+    "max_pixel_share",
+    "worst_block",
+    "worst_block_x",
+    "worst_block_y",
+    "component",
+    "comp_relmse",
+    "comp_relmse_trimmed",
+    "comp_smape",
+    "comp_worst_block",
     "bias2",
     "variance",
     "rel_bias2",
     "rel_variance",
+    "bias_note",
     "time_total_s",
     "accel_build_s",
     "preprocess_s",
@@ -135,27 +189,38 @@ fn json_cell(v: &Json) -> String {
     }
 }
 
-fn csv_escape(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
-}
-
 fn opt(v: Option<f64>) -> String {
     v.map_or(String::new(), |x| x.to_string())
 }
 
-/// Writes `cells.csv`: the fixed columns, then every integrator counter seen (union,
-/// sorted), then every configuration key as `cfg_KEY`.
+/// A bias² estimate as a table value: empty unless resolved (never a negative number).
+fn bias_cell(r: &Row, f: fn(&BiasVariance) -> f64) -> String {
+    opt(r.split.filter(|b| bias_resolved(b, r.repeats)).map(|b| f(&b)))
+}
+
+/// Why `bias2` is empty, or nothing.
+pub fn bias_note(split: Option<&BiasVariance>, repeats: usize) -> String {
+    match split {
+        None if repeats < 2 => "one repeat: no bias/variance split (needs >= 2)".into(),
+        None => "no split".into(),
+        Some(b) if bias_resolved(b, repeats) => String::new(),
+        Some(_) => format!("bias not resolved by {repeats} repeats (bias2 <= variance/repeats)"),
+    }
+}
+
+/// Writes `cells.csv` (with the `csv` crate: one schema for header and rows, RFC 4180
+/// quoting): the fixed columns, then every integrator counter seen (union, sorted),
+/// then every configuration key as `cfg_KEY`.
 pub fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
     let extra_keys: BTreeSet<&String> = rows.iter().flat_map(|r| r.rec.extra.keys()).collect();
     let cfg_json: Vec<serde_json::Map<String, Json>> =
         rows.iter().map(|r| serde_json::to_value(&r.rec.config).ok().and_then(|v| v.as_object().cloned()).unwrap_or_default()).collect();
     let cfg_keys: BTreeSet<&String> = cfg_json.iter().flat_map(|m| m.keys()).collect();
-    let mut out = String::new();
+    let mut w = csv::WriterBuilder::new().terminator(csv::Terminator::Any(b'\n')).from_writer(Vec::new());
     let mut header: Vec<String> = FIXED_COLUMNS.iter().map(|s| s.to_string()).collect();
     header.extend(extra_keys.iter().map(|k| k.to_string()));
     header.extend(cfg_keys.iter().map(|k| format!("cfg_{k}")));
-    out.push_str(&header.iter().map(|h| csv_escape(h)).collect::<Vec<_>>().join(","));
-    out.push('\n');
+    w.write_record(&header)?;
     for (r, cfg) in rows.iter().zip(&cfg_json) {
         let c = &r.rec;
         let mut f: Vec<String> = vec![
@@ -172,10 +237,22 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
             c.metrics.mse.to_string(),
             c.metrics.relmse.to_string(),
             c.metrics.mae.to_string(),
-            opt(r.split.map(|b| b.bias2)),
+            c.robust.relmse_trimmed.to_string(),
+            c.robust.smape.to_string(),
+            c.robust.max_pixel_share.to_string(),
+            c.robust.worst_block.to_string(),
+            c.robust.worst_block_at[0].to_string(),
+            c.robust.worst_block_at[1].to_string(),
+            c.component.as_ref().map_or(String::new(), |x| x.name.clone()),
+            opt(c.component.as_ref().map(|x| x.relmse)),
+            opt(c.component.as_ref().map(|x| x.robust.relmse_trimmed)),
+            opt(c.component.as_ref().map(|x| x.robust.smape)),
+            opt(c.component.as_ref().map(|x| x.robust.worst_block)),
+            bias_cell(r, |b| b.bias2),
             opt(r.split.map(|b| b.variance)),
-            opt(r.split.map(|b| b.rel_bias2)),
+            bias_cell(r, |b| b.rel_bias2),
             opt(r.split.map(|b| b.rel_variance)),
+            bias_note(r.split.as_ref(), r.repeats),
             c.time_total_s.to_string(),
             c.accel_build_s.to_string(),
             c.preprocess_s.to_string(),
@@ -187,27 +264,30 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
             c.accel_bytes.to_string(),
             c.nonfinite_samples.to_string(),
         ];
+        debug_assert_eq!(f.len(), FIXED_COLUMNS.len());
         f.extend(extra_keys.iter().map(|k| c.extra.get(*k).map_or(String::new(), |v| v.to_string())));
         f.extend(cfg_keys.iter().map(|k| cfg.get(*k).map_or(String::new(), json_cell)));
-        out.push_str(&f.iter().map(|s| csv_escape(s)).collect::<Vec<_>>().join(","));
-        out.push('\n');
+        w.write_record(&f)?;
     }
-    write_atomic(path, out.as_bytes())
+    let bytes = w.into_inner().context("cannot write cells.csv")?;
+    write_atomic(path, &bytes)
 }
 
 /// Writes `cells.jsonl`: each line the cell's record (as in `cells/STEM.json`) plus
 /// `bias2`, `variance`, `rel_bias2` and `rel_variance` of its configuration (null
-/// without repeats).
+/// without repeats; the bias² null too where it is not resolved, see `bias_note`).
 pub fn write_jsonl(path: &Path, rows: &[Row]) -> Result<()> {
     let mut out = String::new();
     for r in rows {
         let mut v = serde_json::to_value(&r.rec)?;
         if let Some(o) = v.as_object_mut() {
             let f = |g: fn(&BiasVariance) -> f64| r.split.as_ref().map_or(Json::Null, |b| Json::from(g(b)));
-            o.insert("bias2".into(), f(|b| b.bias2));
+            let resolved = r.split.is_some_and(|b| bias_resolved(&b, r.repeats));
+            o.insert("bias2".into(), if resolved { f(|b| b.bias2) } else { Json::Null });
             o.insert("variance".into(), f(|b| b.variance));
-            o.insert("rel_bias2".into(), f(|b| b.rel_bias2));
+            o.insert("rel_bias2".into(), if resolved { f(|b| b.rel_bias2) } else { Json::Null });
             o.insert("rel_variance".into(), f(|b| b.rel_variance));
+            o.insert("bias_note".into(), Json::from(bias_note(r.split.as_ref(), r.repeats)));
         }
         out.push_str(&serde_json::to_string(&v)?);
         out.push('\n');
@@ -232,197 +312,9 @@ pub fn sig(v: f64) -> String {
     }
 }
 
-fn count(v: f64) -> String {
+/// An integer count, or [`sig`] for fractional values.
+pub fn count(v: f64) -> String {
     if v.fract() == 0.0 && v.abs() < 1e15 { format!("{}", v as i64) } else { sig(v) }
-}
-
-/// Error budgets: up to four relative-MSE levels spread log-evenly over the observed range,
-/// rounded to two significant digits.
-pub fn budgets(stats: &[ConfigStats]) -> Vec<f64> {
-    let errs: Vec<f64> = stats.iter().map(|s| s.relmse).filter(|e| e.is_finite() && *e > 0.0).collect();
-    let (lo, hi) = errs.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &e| (a.min(e), b.max(e)));
-    if errs.is_empty() {
-        return vec![];
-    }
-    let mut out: Vec<f64> = Vec::new();
-    let steps = 4;
-    for i in 0..steps {
-        let t = i as f64 / (steps - 1) as f64;
-        let b = (lo.ln() * (1.0 - t) + hi.ln() * t).exp();
-        // Round up, so the best configuration always meets the smallest budget.
-        let p = 10f64.powf(b.log10().floor() - 1.0);
-        let b = (b / p).ceil() * p;
-        if !out.iter().any(|x| (x - b).abs() <= 1e-12 * b) {
-            out.push(b);
-        }
-    }
-    out
-}
-
-/// Context for the summary's header.
-pub struct SummaryInfo<'a> {
-    /// The manifest.
-    pub manifest: &'a Manifest,
-    /// The scenes' references.
-    pub references: &'a [super::RefInfo],
-    /// Plots as (title, file name relative to the experiment directory).
-    pub plots: &'a [(String, String)],
-}
-
-/// Writes `summary.md`.
-pub fn write_summary(path: &Path, info: &SummaryInfo, stats: &[ConfigStats]) -> Result<()> {
-    let m = info.manifest;
-    let mut s = String::new();
-    let _ = writeln!(s, "# Experiment `{}`\n", m.name);
-    if !m.description.trim().is_empty() {
-        let _ = writeln!(s, "{}\n", m.description.trim());
-    }
-    let scenes: Vec<String> = m
-        .scenes
-        .iter()
-        .zip(info.references)
-        .map(|(sc, r)| {
-            let what = match &sc.source {
-                super::manifest::SceneSource::Builtin(b) => format!("built-in `{b}`"),
-                super::manifest::SceneSource::File(p) => format!("`{}`", p.display()),
-                super::manifest::SceneSource::Empty => "defined in the manifest".into(),
-            };
-            let models = if sc.meshes.is_empty() { String::new() } else { format!(" + {} model(s)", sc.meshes.len()) };
-            format!("{what}{models} (reference: {})", r.description)
-        })
-        .collect();
-    let _ = writeln!(
-        s,
-        "Scene {}; {}×{} pixels. {} configuration(s) × {} repeat(s) = {} cells; photonlab {}. \
-         Generated by `photonlab run {}`; every row of `cells.csv` / `cells.jsonl` is one cell.\n",
-        scenes.join("; "),
-        m.resolution[0],
-        m.resolution[1],
-        m.configurations(),
-        m.repeats,
-        m.cells.len(),
-        env!("CARGO_PKG_VERSION"),
-        m.path.display()
-    );
-    let has_bv = stats.iter().any(|c| c.split.is_some());
-    let _ = writeln!(s, "## Results (mean over repeats)\n");
-    let _ = write!(s, "| configuration | RMSE | relMSE | MAE |");
-    if has_bv {
-        let _ = write!(s, " rel. bias² | rel. variance |");
-    }
-    let _ = writeln!(s, " time (s) | rays |");
-    let _ = write!(s, "|---|---:|---:|---:|");
-    if has_bv {
-        let _ = write!(s, "---:|---:|");
-    }
-    let _ = writeln!(s, "---:|---:|");
-    for c in stats {
-        let _ = write!(s, "| {} | {} | {} | {} |", c.label, sig(c.rmse), sig(c.relmse), sig(c.mae));
-        if has_bv {
-            let _ = write!(
-                s,
-                " {} | {} |",
-                c.split.map_or("–".into(), |b| sig(b.rel_bias2)),
-                c.split.map_or("–".into(), |b| sig(b.rel_variance))
-            );
-        }
-        let _ = writeln!(s, " {} | {} |", sig(c.time_s), count(c.rays.round()));
-    }
-
-    // Budgets compare configurations of one scene (errors of different scenes are
-    // not comparable).
-    let mut scenes: Vec<Option<&Json>> = Vec::new();
-    for c in stats {
-        let sc = c.values.get("scene");
-        if !scenes.contains(&sc) {
-            scenes.push(sc);
-        }
-    }
-    let mut header_done = false;
-    for sc in scenes {
-        let of_scene: Vec<ConfigStats> = stats.iter().filter(|c| c.values.get("scene") == sc).cloned().collect();
-        let b = budgets(&of_scene);
-        if b.is_empty() {
-            continue;
-        }
-        if !header_done {
-            let _ = writeln!(s, "\n## Best configuration per error budget\n");
-            let _ = writeln!(s, "The fastest configuration whose mean relative MSE is within each budget.\n");
-            header_done = true;
-        }
-        if let Some(name) = sc {
-            let _ = writeln!(s, "Scene `{}`:\n", name.as_str().unwrap_or_default());
-        }
-        let _ = writeln!(s, "| relMSE ≤ | fastest configuration | its relMSE | time (s) |\n|---:|---|---:|---:|");
-        for budget in b {
-            let best = of_scene
-                .iter()
-                .filter(|c| c.relmse <= budget)
-                .min_by(|x, y| x.time_s.partial_cmp(&y.time_s).unwrap_or(std::cmp::Ordering::Equal));
-            if let Some(c) = best {
-                let _ = writeln!(s, "| {} | {} | {} | {} |", sig(budget), c.label, sig(c.relmse), sig(c.time_s));
-            }
-        }
-        let _ = writeln!(s);
-    }
-
-    // Phase times: accelerator build, the integrator's own timed phases (extra keys
-    // ending in `_s`), any remaining pre-pass time, render.
-    let phase_keys: BTreeSet<&String> = stats.iter().flat_map(|c| c.extra.keys()).filter(|k| k.ends_with("_s")).collect();
-    let _ = writeln!(s, "\n## Time of each phase (s, mean over repeats)\n");
-    let _ = write!(s, "| configuration | accel build |");
-    for k in &phase_keys {
-        let _ = write!(s, " {} |", k.trim_end_matches("_s").replace('_', " "));
-    }
-    let _ = writeln!(s, " render | total |");
-    let _ = writeln!(s, "|---|{}", "---:|".repeat(phase_keys.len() + 3));
-    for c in stats {
-        let _ = write!(s, "| {} | {} |", c.label, sig(c.accel_build_s));
-        for k in &phase_keys {
-            let _ = write!(s, " {} |", c.extra.get(*k).map_or("–".into(), |v| sig(*v)));
-        }
-        let _ = writeln!(s, " {} | {} |", sig(c.render_s), sig(c.time_s));
-    }
-
-    let counter_keys: BTreeSet<&String> = stats.iter().flat_map(|c| c.extra.keys()).filter(|k| !k.ends_with("_s")).collect();
-    if !counter_keys.is_empty() {
-        let _ = writeln!(s, "\n## Integrator counters (mean over repeats)\n");
-        let _ = write!(s, "| configuration |");
-        for k in &counter_keys {
-            let _ = write!(s, " {} |", k.replace('_', " "));
-        }
-        let _ = writeln!(s, "\n|---|{}", "---:|".repeat(counter_keys.len()));
-        for c in stats {
-            let _ = write!(s, "| {} |", c.label);
-            for k in &counter_keys {
-                let _ = write!(s, " {} |", c.extra.get(*k).map_or("–".into(), |v| count(*v)));
-            }
-            let _ = writeln!(s);
-        }
-    }
-
-    if !info.plots.is_empty() {
-        let _ = writeln!(s, "\n## Plots\n");
-        for (title, file) in info.plots {
-            let _ = writeln!(s, "### {title}\n\n![{title}]({file})\n");
-        }
-    }
-
-    let _ = writeln!(s, "## Images\n");
-    let _ = writeln!(
-        s,
-        "First repeat of each configuration; the error image shows the per-pixel relative error \
-         √(mean over RGB of (x − ref)² / (ref² + 0.01)) on a log scale from 0.001 (black) to 1 (pale yellow).\n"
-    );
-    for r in info.references {
-        let png = Path::new(&r.file).with_extension("png");
-        let _ = writeln!(s, "Reference `{}`:\n\n![reference {}]({})\n", r.scene, r.scene, png.display());
-    }
-    let _ = writeln!(s, "| configuration | image | relative error |\n|---|---|---|");
-    for c in stats {
-        let _ = writeln!(s, "| {} | ![](cells/{}.png) | ![](cells/{}.relerr.png) |", c.label, c.first_stem, c.first_stem);
-    }
-    write_atomic(path, s.as_bytes())
 }
 
 #[cfg(test)]
@@ -435,9 +327,20 @@ mod tests {
         assert_eq!(sig(12.345), "12.3");
         assert_eq!(sig(1234.5), "1234");
         assert_eq!(sig(1.5e-5), "1.50e-5");
-        assert_eq!(csv_escape("a,b"), "\"a,b\"");
-        assert_eq!(csv_escape("say \"x\""), "\"say \"\"x\"\"\"");
         assert_eq!(json_cell(&serde_json::json!([64, 32])), "64x32");
         assert_eq!(json_cell(&Json::Null), "");
+    }
+
+    #[test]
+    fn a_bias_below_its_noise_is_never_printed() {
+        let split = |rel_bias2: f64| BiasVariance { bias2: rel_bias2, variance: 0.04, rel_bias2, rel_variance: 0.04 };
+        // Unbiased estimates of a zero bias come out ±; with 4 repeats the noise of
+        // the mean image is variance / 4 = 0.01.
+        for (b, shown) in [(-2e-4, false), (0.0, false), (0.009, false), (0.02, true)] {
+            let s = split(b);
+            assert_eq!(bias_resolved(&s, 4), shown, "{b}");
+            assert_eq!(bias_note(Some(&s), 4).is_empty(), shown, "{b}");
+        }
+        assert!(bias_note(None, 1).contains("one repeat"));
     }
 }

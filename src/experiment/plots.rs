@@ -247,6 +247,9 @@ mod tests {
             rays: 0.0,
             extra,
             split: None,
+            robust: Default::default(),
+            reference_key: String::new(),
+            component: None,
         };
         let mut got: Vec<&str> = disjoint_phases(&c).into_iter().map(String::as_str).collect();
         got.sort();

@@ -5,6 +5,13 @@
 //! sampling (power heuristic) for area lights; delta lights are sampled only by NEE,
 //! delta BSDF lobes only by BSDF sampling (their emitted hits count fully). Russian
 //! roulette by the configured policy; `max_depth` bounces at most (unbounded by default).
+//!
+//! Extra images `direct`, `indirect`, `caustic` split the image by path type, as the
+//! photon integrator's AOVs do: with k the first non-delta vertex from the camera,
+//! light emitted at or before k, next-event estimation at k and the emitter hit by
+//! the BSDF sample leaving k are *direct*; light reaching k through delta (mirror,
+//! glass) vertices only is *caustic*; light that met another non-delta vertex after
+//! k is *indirect*. The three add up to the full image.
 
 use super::Integrator;
 use crate::accel::TraversalStats;
@@ -21,6 +28,27 @@ pub struct PathIntegrator {
     pub max_depth: u32,
     /// Russian-roulette policy.
     pub rr: Box<dyn RussianRoulette>,
+    /// Which part of the light `li` returns.
+    pub output: PathOutput,
+}
+
+/// Part of the image by path type (see the module documentation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PathOutput {
+    /// Everything.
+    #[default]
+    All,
+    /// Emitted and direct light at the first non-delta vertex.
+    Direct,
+    /// Light through delta vertices only onto the first non-delta vertex.
+    Caustic,
+    /// Light that met a further non-delta vertex.
+    Indirect,
+}
+
+impl PathOutput {
+    /// Extra-image names.
+    pub const NAMES: &'static [&'static str] = &["direct", "indirect", "caustic"];
 }
 
 impl Integrator for PathIntegrator {
@@ -28,7 +56,22 @@ impl Integrator for PathIntegrator {
         "path"
     }
 
+    fn set_output(&mut self, aov: &str) -> anyhow::Result<()> {
+        self.output = match aov {
+            "all" => PathOutput::All,
+            "direct" => PathOutput::Direct,
+            "indirect" => PathOutput::Indirect,
+            "caustic" => PathOutput::Caustic,
+            _ => anyhow::bail!("integrator `path` has no extra image `{aov}` (known: {})", PathOutput::NAMES.join(", ")),
+        };
+        Ok(())
+    }
+
     fn li(&self, world: &World, camera_ray: &Ray, sampler: &mut dyn Sampler, stats: &mut TraversalStats) -> Color {
+        let want = |class: PathOutput| self.output == PathOutput::All || self.output == class;
+        // Path-type state: the first non-delta vertex k seen; vertices after k so far
+        // (before the current one); whether one of them was non-delta.
+        let (mut k_seen, mut after_k, mut after_k_nondelta) = (false, 0u32, false);
         let mut l = Color::ZERO;
         let mut beta = Color::ONE;
         let mut ray = *camera_ray;
@@ -38,7 +81,14 @@ impl Integrator for PathIntegrator {
         let mut depth = 0u32;
         while let Some(it) = world.intersect(&ray, stats) {
             let mat = world.material(&it);
-            if it.front && mat.is_emitter() {
+            let emit_class = if !k_seen || after_k == 0 {
+                PathOutput::Direct
+            } else if after_k_nondelta {
+                PathOutput::Indirect
+            } else {
+                PathOutput::Caustic
+            };
+            if it.front && mat.is_emitter() && want(emit_class) {
                 if specular {
                     l += beta * mat.emission;
                 } else {
@@ -56,6 +106,7 @@ impl Integrator for PathIntegrator {
             let u_sel = sampler.next_1d();
             let u_light = sampler.next_2d();
             if !bsdf.is_delta()
+                && want(if k_seen { PathOutput::Indirect } else { PathOutput::Direct })
                 && let Some(ls) = world.lights.sample_li(&world.scene, it.p, u_sel, u_light)
             {
                 let f = bsdf.eval(&it.sp, wo, ls.wi);
@@ -76,6 +127,12 @@ impl Integrator for PathIntegrator {
             let u_lobe = sampler.next_1d();
             let u_dir = sampler.next_2d();
             let Some(bs) = bsdf.sample(&it.sp, wo, u_lobe, u_dir, TransportMode::Radiance) else { break };
+            if k_seen {
+                after_k += 1;
+                after_k_nondelta |= !bsdf.is_delta();
+            } else {
+                k_seen = !bsdf.is_delta();
+            }
             beta *= bs.weight;
             if beta.max_element() <= 0.0 {
                 break;

@@ -104,7 +104,7 @@ fn reference(w: &World) -> Vec<(f64, Option<crate::world::Interaction>)> {
 
 /// MSE of the path integrator at each spp in `levels` (pixel centres), `sampler`.
 fn path_mse(w: &World, refs: &[(f64, Option<crate::world::Interaction>)], sampler: &str, levels: &[u32]) -> Result<Vec<(f64, f64)>> {
-    let integrator = PathIntegrator { max_depth: u32::MAX, rr: make_rr("throughput")? };
+    let integrator = PathIntegrator { max_depth: u32::MAX, rr: make_rr("throughput")?, output: Default::default() };
     let cam = &w.scene.camera;
     let nested = sampler != "hammersley";
     let max = *levels.iter().max().unwrap_or(&1);

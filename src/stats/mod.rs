@@ -241,13 +241,16 @@ fn p_str(p: Option<f64>) -> String {
     p.map(fmt_num).unwrap_or_default()
 }
 
-/// The rows as CSV with the header `test,statistic,p_value,expected,verdict`.
+/// The rows as CSV with the header `test,statistic,p_value,expected,verdict`
+/// (the `csv` crate: fields quoted where needed, one schema for header and rows).
 pub fn csv(rows: &[TestRow]) -> String {
-    let mut s = String::from("test,statistic,p_value,expected,verdict\n");
+    let mut w = ::csv::WriterBuilder::new().terminator(::csv::Terminator::Any(b'\n')).from_writer(Vec::new());
+    let _ = w.write_record(["test", "statistic", "p_value", "expected", "verdict"]);
     for r in rows {
-        let _ = writeln!(s, "{},{},{},{},{}", r.test, fmt_num(r.statistic), p_str(r.p_value), r.expected.as_str(), r.verdict.as_str());
+        let _ =
+            w.write_record([r.test.clone(), fmt_num(r.statistic), p_str(r.p_value), r.expected.as_str().into(), r.verdict.as_str().into()]);
     }
-    s
+    String::from_utf8(w.into_inner().unwrap_or_default()).unwrap_or_default()
 }
 
 fn markdown(rows: &[TestRow], args: &StatsArgs, seconds: f64, threads: usize) -> String {
@@ -445,6 +448,8 @@ mod tests {
         let rows = vec![TestRow::new("a/b", 2.0, None, Outcome::Fail, false), TestRow::new("c", 1.0, Some(0.5), Outcome::Pass, false)];
         let c = csv(&rows);
         assert!(c.starts_with("test,statistic,p_value,expected,verdict\na/b,2,,fail,fail\nc,1,0.5,pass,fail\n"), "{c}");
+        let quoted = csv(&[TestRow::new("x,y", 1.0, None, Outcome::Pass, true)]);
+        assert!(quoted.ends_with("\"x,y\",1,,pass,pass\n"), "{quoted}");
         assert_eq!(unexpected(&rows).len(), 1);
     }
 }

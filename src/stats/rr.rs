@@ -80,7 +80,7 @@ fn cornell_world(res: u32) -> Result<World> {
 /// `n` observations of the mean radiance (channel mean) over `pixels`, by the path
 /// integrator with policy `rr`.
 pub fn pixel_samples(world: &World, rr: Box<dyn RussianRoulette>, pixels: &[(u32, u32)], n: usize, seed: u64) -> Vec<f64> {
-    let integrator = PathIntegrator { max_depth: MAX_DEPTH, rr };
+    let integrator = PathIntegrator { max_depth: MAX_DEPTH, rr, output: Default::default() };
     let cam = &world.scene.camera;
     (0..n)
         .into_par_iter()
