@@ -73,7 +73,7 @@
   };
   const fmt = (v) => {
     if (typeof v !== "number") return String(v);
-    if (v === 0) return "0";
+    if (Number.isInteger(v) && Math.abs(v) < 1e9) return String(v);
     const a = Math.abs(v);
     return a < 1e-3 || a >= 1e5 ? v.toExponential(2) : v.toPrecision(3);
   };
