@@ -1,13 +1,13 @@
 // photonlab experiment report: image comparison viewer. No dependencies; works from
 // file:// (images by <img>, radiance by <script> files calling PL.hdr).
-// URL hash options: #cell=STEM&mode=cell|ref|flip|slide|relerr|signed&ev=N&selftest
+// URL hash options: #cell=STEM&mode=cell|ref|flip|slide|relerr|signed&ev=N&comp&selftest
 "use strict";
 (function () {
   const D = PL_DATA;
   const hdrs = {}; // id -> {w, h, f: Float32Array (RGB)}
   const waiting = {}; // id -> [callbacks]
   const imgs = {}; // src -> Image
-  const st = { cell: 0, mode: "flip", showRef: false, ev: 0, scale: 1, ox: 0, oy: 0, split: 0.5, mouse: null };
+  const st = { cell: 0, mode: "flip", showRef: false, ev: 0, scale: 1, ox: 0, oy: 0, split: 0.5, mouse: null, comp: false };
 
   window.PL = {
     hdr(id, w, h, b64) {
@@ -116,6 +116,14 @@
   const one = el("button", { id: "pl-one" }, "1:1");
   one.addEventListener("click", () => zoomTo(1));
   controls.append(el("br"), "exposure ", ev, " ", evLabel, " ", reset, one);
+  if (D.component_name) {
+    // Show the measured component (cell and reference) instead of the full image.
+    const cb = el("input", { type: "checkbox", id: "pl-comp" });
+    cb.addEventListener("change", () => { st.comp = cb.checked; draw(); });
+    const lab = el("label", {}, " ");
+    lab.append(cb, " " + D.component_name + " component");
+    controls.append(lab);
+  }
   const legend = el("div", { id: "pl-legend" });
   const canvas = el("canvas", { id: "pl-canvas" });
   const status = el("div", { id: "pl-status" });
@@ -125,8 +133,10 @@
   function refOf(c) { return D.references[c.scene] || D.references[0]; }
 
   // ---- drawing ----
+  // The HDR images shown: the full image, or the component (when chosen and present).
+  function hdrOf(x) { return st.comp && x.comp ? x.comp : x; }
   function sources(cb) {
-    const c = cur(), r = refOf(c);
+    const c = hdrOf(cur()), r = hdrOf(refOf(cur()));
     const out = {};
     let left = 2;
     const done = () => { if (--left === 0) cb(out); };
@@ -142,7 +152,7 @@
   }
 
   function fit() {
-    const c = cur(), r = refOf(c);
+    const c = hdrOf(cur()), r = hdrOf(refOf(cur()));
     const h = hdrs[c.id] || hdrs[r.id];
     const W = canvas.width, H = canvas.height;
     const w = h ? h.w : 256, hh = h ? h.h : 256;
@@ -170,7 +180,7 @@
       if (token !== pending) return;
       const finish = (extra) => {
         paint(src, extra);
-        canvas.setAttribute("data-shown", c.id + ":" + st.mode);
+        canvas.setAttribute("data-shown", c.id + ":" + st.mode + (st.comp && c.comp ? ":comp" : ""));
         if (selftest && selftest.onDrawn) selftest.onDrawn();
       };
       if (st.mode === "relerr" || st.mode === "signed") {
@@ -221,9 +231,10 @@
       ctx.font = "12px sans-serif";
       ctx.fillText("worst " + pct(cur().worst_block), st.ox + c0(0) * st.scale, st.oy + c0(1) * st.scale - 4);
     }
-    const showing = errImg ? (mode === "relerr" ? "|error|" : "signed block error")
+    const what = st.comp && cur().comp && !errImg ? D.component_name + " " : "";
+    const showing = what + (errImg ? (mode === "relerr" ? "|error|" : "signed block error")
       : mode === "slide" ? "cell | reference"
-      : (mode === "ref" || (mode === "flip" && st.showRef)) ? "reference" : "cell";
+      : (mode === "ref" || (mode === "flip" && st.showRef)) ? "reference" : "cell");
     ctx.font = "bold 14px sans-serif";
     ctx.fillStyle = "#fff";
     ctx.fillText(showing + "  ·  " + cur().label + " r" + cur().repeat + "  ·  ×" + fmt(st.scale), 8, canvas.height - 10);
@@ -233,7 +244,7 @@
   function c0(k) { return cur().worst_block_at[k]; }
 
   function updateStatus() {
-    const c = cur(), r = refOf(c);
+    const c = hdrOf(cur()), r = hdrOf(refOf(cur()));
     let s = "";
     if (st.mouse) {
       const x = Math.floor((st.mouse[0] - st.ox) / st.scale), y = Math.floor((st.mouse[1] - st.oy) / st.scale);
@@ -332,8 +343,12 @@
     const [k, v] = kv.split("=");
     opts[decodeURIComponent(k)] = v === undefined ? true : decodeURIComponent(v);
   });
-  let selftest = opts.selftest ? { failed: [], checked: [] } : null;
+  let selftest = opts.selftest ? { failed: [], checked: [], comp_checked: [] } : null;
   resize();
+  if (opts.comp && D.component_name) {
+    st.comp = true;
+    document.getElementById("pl-comp").checked = true;
+  }
   if (opts.ev) { st.ev = parseFloat(opts.ev) || 0; ev.value = st.ev; evLabel.textContent = st.ev + " EV"; }
   st.mode = modes.some(([m]) => m === opts.mode) ? opts.mode : "flip";
   const start = Math.max(0, D.cells.findIndex((c) => c.id === opts.cell));
@@ -352,12 +367,13 @@
       const bad = pageImgs.filter((im) => !(im.complete && im.naturalWidth > 0)).map((im) => im.getAttribute("src"));
       // Back to the cell and mode the hash asked for, as a user would see it.
       st.mode = modes.some(([m]) => m === opts.mode) ? opts.mode : "flip";
+      st.comp = false;
       setMode(st.mode);
       select(start);
       const sel = document.querySelector("#pl-cells tr.sel");
       const res = {
         done: true, page_images: pageImgs.length, page_images_failed: bad, cells: D.cells.length,
-        cells_checked: selftest.checked, failed: selftest.failed,
+        cells_checked: selftest.checked, comp_checked: selftest.comp_checked, failed: selftest.failed,
         selected: sel ? sel.id.replace(/^pl-row-/, "") : null, mode: st.mode,
       };
       out.textContent = JSON.stringify(res);
@@ -376,20 +392,23 @@
     };
     // Every cell, each in the three modes that load different files.
     const steps = [];
-    D.cells.forEach((c, i) => ["cell", "relerr", "signed"].forEach((m) => steps.push([i, m])));
+    D.cells.forEach((c, i) => ["cell", "relerr", "signed"].concat(c.comp ? ["comp"] : []).forEach((m) => steps.push([i, m])));
     let k = 0;
     const next = () => {
       selftest.next = next;
       if (k === steps.length) { selftest.onDrawn = null; return whenImagesLoaded(finish); }
       const [i, m] = steps[k++];
+      const want = D.cells[i].id + ":" + (m === "comp" ? "slide:comp" : m);
       selftest.onDrawn = () => {
-        if (canvas.getAttribute("data-shown") === D.cells[i].id + ":" + m) {
+        if (canvas.getAttribute("data-shown") === want) {
           selftest.onDrawn = null;
           if (m === "signed") selftest.checked.push(D.cells[i].id);
+          if (m === "comp") selftest.comp_checked.push(D.cells[i].id);
           setTimeout(next, 0);
         }
       };
-      st.mode = m;
+      st.comp = m === "comp";
+      st.mode = m === "comp" ? "slide" : m;
       select(i);
     };
     next();

@@ -59,6 +59,7 @@ const MANIFEST: &str = r#"
 description = "Browser test: two samplers x two sample counts, two repeats."
 scene = "cornell"
 resolution = [40, 32]
+component = "indirect"
 [reference]
 integrator = "path"
 spp = 16
@@ -123,6 +124,10 @@ fn report_loads_and_switches_cells_in_chromium() {
     let mut want = cells.clone();
     want.sort();
     assert_eq!(checked, want, "{res}");
+    // The measured component's images (cell and reference) draw too.
+    let mut comp: Vec<String> = res["comp_checked"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
+    comp.sort();
+    assert_eq!(comp, want, "{res}");
     assert_eq!(res["selected"], first, "{res}");
     assert!(dom.contains("data-selftest=\"pass\""), "{res}");
 

@@ -64,6 +64,12 @@ fn write_view_js(dir: &Path, id: &str, film: &Film) -> Result<String> {
     Ok(rel)
 }
 
+/// The viewer script of a component image: `{"id", "js"}`.
+fn view_component(dir: &Path, exr: &Path, id: &str) -> Result<serde_json::Value> {
+    let film = Film::read_exr(exr).context("the report needs the component images")?;
+    Ok(json!({"id": id, "js": write_view_js(dir, id, &film)?}))
+}
+
 /// Text safe inside `<script>`: JSON with `<` escaped.
 fn script_json(v: &serde_json::Value) -> Result<String> {
     Ok(serde_json::to_string(v)?.replace('<', "\\u003c"))
@@ -79,7 +85,13 @@ pub fn write_report(dir: &Path, info: &SummaryInfo, rows: &[Row], summary_md: &s
         let id = Path::new(&r.file).file_stem().map_or_else(|| format!("reference-{}", r.scene), |s| s.to_string_lossy().into_owned());
         let js = write_view_js(dir, &id, &film)?;
         let png = Path::new(&r.file).with_extension("png").to_string_lossy().into_owned();
-        refs.push(json!({"scene": r.scene, "id": id, "js": js, "png": png, "noise_relmse": r.noise_relmse, "component_noise_relmse": r.component_noise_relmse, "description": r.description}));
+        // The measured component's reference, viewable like the image.
+        let comp = match (&r.component_file, &m.component) {
+            (Some(f), Some(c)) => Some(view_component(dir, &dir.join(f), &format!("{id}.{c}"))?),
+            _ => None,
+        };
+        refs.push(json!({"scene": r.scene, "id": id, "js": js, "png": png, "noise_relmse": r.noise_relmse,
+            "component_noise_relmse": r.component_noise_relmse, "description": r.description, "comp": comp}));
     }
     let mut cells = Vec::new();
     for row in rows {
@@ -89,6 +101,10 @@ pub fn write_report(dir: &Path, info: &SummaryInfo, rows: &[Row], summary_md: &s
         let js = write_view_js(dir, &c.cell, &film)?;
         let scene = m.cells.iter().find(|x| x.stem == c.cell).map_or(0, |x| x.scene);
         let rel = |name: &str| format!("cells/{}.{name}", c.cell);
+        let comp = match &m.component {
+            Some(k) => Some(view_component(dir, &p.exr.with_extension(format!("{k}.exr")), &format!("{}.{k}", c.cell))?),
+            None => None,
+        };
         cells.push(json!({
             "id": c.cell, "label": c.label, "repeat": c.repeat, "scene": scene, "js": js,
             "png": rel("png"), "relerr": rel("relerr.png"), "signed": rel("signed.png"),
@@ -101,11 +117,11 @@ pub fn write_report(dir: &Path, info: &SummaryInfo, rows: &[Row], summary_md: &s
                 ["worst block at", c.robust.worst_block_at], ["worst pixel share", c.robust.max_pixel_share],
                 ["time (s)", c.time_total_s], ["seed", c.seed],
             ],
-            "component": c.component,
+            "component": c.component, "comp": comp,
         }));
     }
     let data = json!({
-        "name": m.name, "block": super::metrics::BLOCK, "signed_range": super::metrics::SIGNED_RANGE,
+        "component_name": m.component, "name": m.name, "block": super::metrics::BLOCK, "signed_range": super::metrics::SIGNED_RANGE,
         "relerr_range": super::cell::RELERR_RANGE, "references": refs, "cells": cells,
     });
     let mut body = String::new();
