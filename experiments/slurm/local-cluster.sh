@@ -81,7 +81,8 @@ SlurmUser=root
 SlurmdUser=root
 AuthType=auth/munge
 CredType=cred/munge
-AuthInfo=socket=$SOCK
+# cred_expire: how long a requeued job waits before it may start again (default 120 s).
+AuthInfo=socket=$SOCK,cred_expire=10
 StateSaveLocation=$D/state/ctld
 SlurmdSpoolDir=$D/state/d
 SlurmctldPidFile=$D/run/slurmctld.pid
