@@ -21,8 +21,7 @@ use crate::config::RenderConfig;
 use crate::film::{Film, write_atomic};
 use crate::integrator::Integrator;
 use crate::math::is_finite;
-use crate::pipeline::{Timings, thread_pool};
-use crate::registry;
+use crate::pipeline::{Prepared, Timings, configured_scene, prepare, thread_pool};
 use crate::render::{RenderStats, TILE, progress_bar};
 use crate::sampler::{DIM_PIXEL, Sampler};
 use crate::scene::Scene;
@@ -297,24 +296,14 @@ pub fn check_range(cfg: &RenderConfig, range: SampleRange) -> Result<()> {
 
 /// Renders samples `range` of the `cfg.spp`-sample render of `scene` (the
 /// configuration is validated first). `key` identifies scene + configuration.
-pub fn render_part(mut scene: Scene, cfg: &RenderConfig, range: SampleRange, key: &str, quiet: bool) -> Result<PartOutcome> {
-    registry::validate(cfg)?;
+pub fn render_part(scene: Scene, cfg: &RenderConfig, range: SampleRange, key: &str, quiet: bool) -> Result<PartOutcome> {
+    let scene = configured_scene(scene, cfg)?;
     check_range(cfg, range)?;
-    if let Some([w, h]) = cfg.resolution {
-        scene.camera = scene.camera.with_resolution(w, h).map_err(anyhow::Error::msg)?;
-    }
     let pool = thread_pool(cfg.threads)?;
     let threads = pool.current_num_threads();
     pool.install(|| {
         let t0 = Instant::now();
-        let accel = registry::make_accel(&cfg.accel, &scene.triangles)?;
-        let accel_build_s = t0.elapsed().as_secs_f64();
-        let world = World::new(scene, accel).map_err(anyhow::Error::msg)?;
-        let mut integrator = registry::make_integrator_with(cfg, quiet)?;
-        let sampler = registry::make_sampler(&cfg.sampler, cfg.seed, Some(cfg.spp as u64))?;
-        let t1 = Instant::now();
-        integrator.preprocess(&world)?;
-        let preprocess_s = t1.elapsed().as_secs_f64();
+        let Prepared { world, integrator, sampler, accel_build_s, preprocess_s, .. } = prepare(scene, cfg, quiet)?;
         let (sums, stats, too_large) = render_range(&world, integrator.as_ref(), sampler.as_ref(), range, quiet);
         if too_large > 0 {
             bail!("{too_large} sample(s) of {range} exceed {MAX_SAMPLE:e} in magnitude, beyond the exact sums' range");

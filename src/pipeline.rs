@@ -4,8 +4,10 @@
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
+use crate::integrator::Integrator;
 use crate::registry;
 use crate::render::{RenderStats, render};
+use crate::sampler::Sampler;
 use crate::scene::Scene;
 use crate::world::World;
 use anyhow::{Context, Result};
@@ -68,29 +70,17 @@ pub fn render_scene_with_aovs(scene: Scene, cfg: &RenderConfig, quiet: bool, aov
 /// As [`render_scene_with_aovs`]; progressive integrators (`sppm`, `ppm`) call
 /// `on_pass` with the image after every pass (others never call it).
 pub fn render_scene_observed(
-    mut scene: Scene,
+    scene: Scene,
     cfg: &RenderConfig,
     quiet: bool,
     aovs: &[String],
     on_pass: crate::integrator::progressive::OnPass,
 ) -> Result<RenderOutcome> {
-    registry::validate(cfg)?;
-    if let Some([w, h]) = cfg.resolution {
-        scene.camera = scene.camera.with_resolution(w, h).map_err(anyhow::Error::msg)?;
-    }
+    let scene = configured_scene(scene, cfg)?;
     let pool = thread_pool(cfg.threads)?;
     let threads = pool.current_num_threads();
     pool.install(|| {
-        let t0 = Instant::now();
-        let accel = registry::make_accel(&cfg.accel, &scene.triangles)?;
-        let accel_build_s = t0.elapsed().as_secs_f64();
-        let accel_bytes = accel.memory_bytes();
-        let world = World::new(scene, accel).map_err(anyhow::Error::msg)?;
-        let mut integrator = registry::make_integrator_with(cfg, quiet)?;
-        let sampler = registry::make_sampler(&cfg.sampler, cfg.seed, Some(cfg.spp as u64))?;
-        let t1 = Instant::now();
-        integrator.preprocess(&world)?;
-        let preprocess_s = t1.elapsed().as_secs_f64();
+        let Prepared { world, mut integrator, sampler, accel_build_s, accel_bytes, preprocess_s } = prepare(scene, cfg, quiet)?;
         let (film, stats) = match integrator.render_progressive(&world, on_pass) {
             Some(done) => done?,
             None => render(&world, integrator.as_ref(), sampler.as_ref(), cfg.spp, quiet),
@@ -115,6 +105,46 @@ pub fn render_scene_observed(
             aovs: extra_images,
         })
     })
+}
+
+/// A world ready to render: accelerator built, integrator pre-pass done.
+pub struct Prepared {
+    /// Scene, accelerator and lights.
+    pub world: World,
+    /// The integrator after its pre-pass.
+    pub integrator: Box<dyn Integrator>,
+    /// The camera-sample prototype (seed `cfg.seed`, `cfg.spp` samples).
+    pub sampler: Box<dyn Sampler>,
+    /// Accelerator build time.
+    pub accel_build_s: f64,
+    /// Accelerator memory.
+    pub accel_bytes: usize,
+    /// Pre-pass time.
+    pub preprocess_s: f64,
+}
+
+/// Validates `cfg` and applies its resolution override to the scene's camera.
+pub fn configured_scene(mut scene: Scene, cfg: &RenderConfig) -> Result<Scene> {
+    registry::validate(cfg)?;
+    if let Some([w, h]) = cfg.resolution {
+        scene.camera = scene.camera.with_resolution(w, h).map_err(anyhow::Error::msg)?;
+    }
+    Ok(scene)
+}
+
+/// Builds the accelerator, the world, the integrator and the camera sampler and runs
+/// the integrator's pre-pass (call inside the worker pool).
+pub fn prepare(scene: Scene, cfg: &RenderConfig, quiet: bool) -> Result<Prepared> {
+    let t0 = Instant::now();
+    let accel = registry::make_accel(&cfg.accel, &scene.triangles)?;
+    let accel_build_s = t0.elapsed().as_secs_f64();
+    let accel_bytes = accel.memory_bytes();
+    let world = World::new(scene, accel).map_err(anyhow::Error::msg)?;
+    let mut integrator = registry::make_integrator_with(cfg, quiet)?;
+    let sampler = registry::make_sampler(&cfg.sampler, cfg.seed, Some(cfg.spp as u64))?;
+    let t1 = Instant::now();
+    integrator.preprocess(&world)?;
+    Ok(Prepared { world, integrator, sampler, accel_build_s, accel_bytes, preprocess_s: t1.elapsed().as_secs_f64() })
 }
 
 /// A dimmed copy of `film` with a red dot at every visible point of `points`
