@@ -545,10 +545,8 @@ mod tests {
     use crate::scene::builtin::builtin;
 
     fn cfg(integrator: &str, spp: u32, res: u32) -> RenderConfig {
-        let mut c = RenderConfig { integrator: integrator.into(), spp, resolution: Some([res, res]), seed: 7, ..Default::default() };
-        c.photons = 3000;
-        c.caustic_photons = 0;
-        c
+        let c = RenderConfig { integrator: integrator.into(), spp, resolution: Some([res, res]), seed: 7, ..Default::default() };
+        if integrator == "path" { c } else { c.with("photons", 3000).with("caustic_photons", 0) }
     }
 
     fn parts(c: &RenderConfig, ranges: &[(u32, u32)]) -> Vec<(PathBuf, Part)> {

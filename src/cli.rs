@@ -54,6 +54,12 @@ pub enum Command {
         #[arg(required = true)]
         parts: Vec<PathBuf>,
     },
+    /// List every strategy family, plug-in and parameter with its default (from the plug-ins' own declarations).
+    Plugins {
+        /// Markdown tables (the README's parameter section is this output).
+        #[arg(long)]
+        markdown: bool,
+    },
     /// Maintenance: fuzz the scene TOML, OBJ, MTL and manifest readers (no panic, no hang).
     Fuzz(crate::fuzz::FuzzArgs),
 }
@@ -106,108 +112,11 @@ pub struct RenderArgs {
     /// Image size WIDTHxHEIGHT (overrides the scene camera's).
     #[arg(long)]
     pub resolution: Option<String>,
-    /// Photon integrator: photons stored in the direct + indirect maps.
-    #[arg(long)]
-    pub photons: Option<u32>,
-    /// Photon integrator: photons stored in the caustic map.
-    #[arg(long)]
-    pub caustic_photons: Option<u32>,
-    /// Photon integrator: emit exactly N photon paths (needed by hammersley).
-    #[arg(long)]
-    pub emit_photons: Option<u64>,
-    /// Photon integrator: cap on emitted photon paths.
-    #[arg(long)]
-    pub max_emitted: Option<u64>,
-    /// Photon integrator: direct | final_gather | precomputed | irradiance_cache.
-    #[arg(long)]
-    pub gather: Option<String>,
-    /// Photon integrator: final-gather rays per point.
-    #[arg(long)]
-    pub gather_samples: Option<u32>,
-    /// Photon integrator: final-gather levels.
-    #[arg(long)]
-    pub gather_bounces: Option<u32>,
-    /// Photon integrator: precomputed irradiance at gather hits (true/false).
-    #[arg(long)]
-    pub precomputed_irradiance: Option<bool>,
-    /// Photon integrator: precompute irradiance at every n-th photon.
-    #[arg(long)]
-    pub precompute_stride: Option<u32>,
-    /// Photon integrator: photons per global estimate.
-    #[arg(long)]
-    pub k: Option<u32>,
-    /// Photon integrator: photons per caustic estimate.
-    #[arg(long)]
-    pub caustic_k: Option<u32>,
-    /// Photon integrator: maximum global search radius (scene units).
-    #[arg(long)]
-    pub max_radius: Option<f32>,
-    /// Photon integrator: maximum caustic search radius (scene units).
-    #[arg(long)]
-    pub caustic_max_radius: Option<f32>,
-    /// Photon integrator: box | cone | gaussian.
-    #[arg(long)]
-    pub filter: Option<String>,
-    /// Photon integrator: disc half-thickness as a fraction of the maximum radius.
-    #[arg(long)]
-    pub disc: Option<f32>,
-    /// Photon integrator: shadow rays per shading point.
-    #[arg(long)]
-    pub direct_samples: Option<u32>,
-    /// Photon integrator: sampler for direct-light samples.
-    #[arg(long)]
-    pub direct_sampler: Option<String>,
-    /// Photon integrator: irradiance-cache tolerance a.
-    #[arg(long)]
-    pub ic_tolerance: Option<f32>,
-    /// Photon integrator: smallest cache radius (fraction of the scene radius).
-    #[arg(long)]
-    pub ic_min_radius: Option<f32>,
-    /// Photon integrator: largest cache radius (fraction of the scene radius).
-    #[arg(long)]
-    pub ic_max_radius: Option<f32>,
-    /// Photon integrator: smallest cache radius in pixel footprints.
-    #[arg(long)]
-    pub ic_min_pixels: Option<f32>,
-    /// Photon integrator: largest cache radius in pixel footprints.
-    #[arg(long)]
-    pub ic_max_pixels: Option<f32>,
-    /// Photon integrator: irradiance gradients in the cache (true/false).
-    #[arg(long)]
-    pub ic_gradients: Option<bool>,
-    /// Photon integrator: rays per irradiance-cache entry.
-    #[arg(long)]
-    pub ic_samples: Option<u32>,
-    /// Photon integrator: neighbour clamping of cache radii (true/false).
-    #[arg(long)]
-    pub ic_neighbor_clamp: Option<bool>,
-    /// Photon integrator: rays drawn from the glossy lobe at glossy points.
-    #[arg(long)]
-    pub glossy_samples: Option<u32>,
-    /// sppm / ppm: maximum number of passes (default 16, unbounded with --time-limit).
-    #[arg(long)]
-    pub passes: Option<u32>,
-    /// sppm / ppm: photon paths emitted per pass (sppm default 131072).
-    #[arg(long)]
-    pub photons_per_pass: Option<u64>,
-    /// sppm / ppm: radius-reduction parameter alpha in (0, 1] (default 2/3).
-    #[arg(long)]
-    pub alpha: Option<f32>,
-    /// sppm / ppm: stop after the pass that crosses this many seconds.
-    #[arg(long)]
-    pub time_limit: Option<f64>,
-    /// sppm: initial per-pixel radius in scene units (default 0.02 x scene radius).
-    #[arg(long)]
-    pub sppm_radius: Option<f32>,
-    /// sppm: direct light by `trace` (shadow rays, default) or `photons`.
-    #[arg(long)]
-    pub sppm_direct: Option<String>,
-    /// sppm / ppm: write the image and the state (OUT.checkpoint.json) every K passes.
-    #[arg(long)]
-    pub checkpoint_every: Option<u32>,
-    /// sppm / ppm: continue from OUT.checkpoint.json (bit-identical to an uninterrupted run).
-    #[arg(long)]
-    pub resume: bool,
+    /// Set a plug-in parameter, KEY=VALUE (repeatable; `photonlab plugins` lists them
+    /// all). Every parameter is also accepted as `--KEY VALUE` (dashes or underscores),
+    /// e.g. `--gather final_gather --ic-tolerance 0.2 --resume`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
     /// Extra images (photon integrator): direct, caustic, indirect, photons-direct,
     /// photons-indirect, photons-caustic, cache. Repeat or comma-separate.
     #[arg(long, value_delimiter = ',')]
@@ -250,35 +159,21 @@ impl RenderArgs {
         if let Some(v) = self.threads {
             c.threads = v;
         }
-        macro_rules! set {
-            ($($f:ident),*) => {$(if let Some(v) = &self.$f { c.$f = v.clone(); })*};
-        }
-        set!(photons, caustic_photons, max_emitted, gather, gather_samples, gather_bounces, precomputed_irradiance, precompute_stride, k);
-        set!(caustic_k, filter, disc, direct_samples, direct_sampler, ic_tolerance, ic_min_radius, ic_max_radius);
-        set!(ic_min_pixels, ic_max_pixels, ic_gradients, ic_neighbor_clamp, glossy_samples, ic_samples);
-        set!(alpha, sppm_direct);
-        c.passes = self.passes.or(c.passes);
-        c.photons_per_pass = self.photons_per_pass.or(c.photons_per_pass);
-        c.time_limit = self.time_limit.or(c.time_limit);
-        c.sppm_radius = self.sppm_radius.or(c.sppm_radius);
-        c.checkpoint_every = self.checkpoint_every.or(c.checkpoint_every);
-        c.resume = self.resume;
-        if let Some(o) = &self.output
-            && (c.checkpoint_every.is_some() || c.resume)
-        {
-            c.checkpoint_file = Some(format!("{}.checkpoint.json", o.with_extension("").display()));
-        }
-        if self.emit_photons.is_some() {
-            c.emit_photons = self.emit_photons;
-        }
-        if self.max_radius.is_some() {
-            c.max_radius = self.max_radius;
-        }
-        if self.caustic_max_radius.is_some() {
-            c.caustic_max_radius = self.caustic_max_radius;
-        }
         if let Some(r) = &self.resolution {
             c.resolution = Some(parse_resolution(r).map_err(anyhow::Error::msg)?);
+        }
+        let cat = crate::registry::catalogue();
+        for kv in &self.set {
+            let (k, v) = kv.split_once('=').ok_or_else(|| anyhow::anyhow!("--set `{kv}`: expected KEY=VALUE"))?;
+            c.set_text(k.trim(), v.trim(), &cat)?;
+        }
+        // Progressive renders keep their state beside the image.
+        let wants_state = ["checkpoint_every", "resume"].iter().any(|k| c.params.contains(k));
+        if let Some(o) = &self.output
+            && wants_state
+            && !c.params.contains("checkpoint_file")
+        {
+            c.params.set("checkpoint_file", format!("{}.checkpoint.json", o.with_extension("").display()));
         }
         Ok(c)
     }
@@ -291,6 +186,56 @@ impl RenderArgs {
             (None, None) => builtin("cornell"),
         }
     }
+}
+
+/// Rewrites `render --KEY VALUE` / `--KEY=VALUE` for any declared plug-in parameter
+/// (dashes or underscores) into `--set KEY=VALUE`, so every parameter has a flag
+/// without a copy of it here; `--KEY` alone sets a boolean parameter to true.
+/// Other arguments pass through unchanged.
+pub fn expand_param_flags(args: Vec<String>) -> Vec<String> {
+    if args.get(1).map(String::as_str) != Some("render") {
+        return args;
+    }
+    let cat = crate::registry::catalogue();
+    let mut out = Vec::with_capacity(args.len());
+    let mut it = args.into_iter().peekable();
+    while let Some(a) = it.next() {
+        let Some(flag) = a.strip_prefix("--") else {
+            out.push(a);
+            continue;
+        };
+        let (name, inline) = match flag.split_once('=') {
+            Some((n, v)) => (n.replace('-', "_"), Some(v.to_string())),
+            None => (flag.replace('-', "_"), None),
+        };
+        let Some(def) = cat
+            .families
+            .iter()
+            .flat_map(|f| f.plugins.iter().flat_map(|p| p.params.iter()))
+            .chain(cat.groups.iter().flat_map(|g| g.params.iter()))
+            .find(|d| d.name == name)
+        else {
+            out.push(a);
+            continue;
+        };
+        let value = match inline {
+            Some(v) => v,
+            None if def.flag => match it.peek().map(String::as_str) {
+                Some("true" | "false") => it.next().unwrap_or_default(),
+                _ => "true".to_string(),
+            },
+            None => match it.next() {
+                Some(v) => v,
+                None => {
+                    out.push(a);
+                    continue;
+                }
+            },
+        };
+        out.push("--set".into());
+        out.push(format!("{name}={value}"));
+    }
+    out
 }
 
 /// Runs a parsed command line.
@@ -309,6 +254,11 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Merge(a) => crate::experiment::merge_cmd(&a),
         Command::Accumulate { out, parts } => crate::accumulate::accumulate_cmd(&out, &parts),
         Command::Fuzz(a) => crate::fuzz::fuzz_cmd(&a),
+        Command::Plugins { markdown } => {
+            let cat = crate::registry::catalogue();
+            outln!("{}", if markdown { cat.markdown() } else { cat.text() }.trim_end());
+            Ok(())
+        }
         Command::Diff { test, reference, out, block } => {
             let a = crate::film::Film::read_exr(&test)?;
             let b = crate::film::Film::read_exr(&reference)?;
@@ -369,8 +319,9 @@ fn cmd_render(a: &RenderArgs) -> Result<()> {
     let ntris = scene.triangles.len();
     let name = scene.name.clone();
     // Progressive renders with checkpoints also write the image at every checkpoint.
+    let checkpoint_every = cfg.params.raw("checkpoint_every").and_then(toml::Value::as_integer).and_then(|k| u32::try_from(k).ok());
     let mut on_pass = |p: u32, _: f64, f: &crate::film::Film| {
-        if cfg.checkpoint_every.is_some_and(|k| p.is_multiple_of(k))
+        if checkpoint_every.is_some_and(|k| p.is_multiple_of(k))
             && let Err(e) = f.write_pair(&out)
         {
             eprintln!("warning: cannot write the image of pass {p}: {e:#}");

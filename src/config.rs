@@ -2,11 +2,13 @@
 //! (unknown keys rejected) and filled from command-line flags. Names are resolved to
 //! plug-ins in one place: [`crate::registry`].
 
+use crate::param::{ParamDef, ParamValue, Params};
 use serde::{Deserialize, Serialize};
 
-/// Every setting of a render.
+/// The keys every render has; each plug-in's own parameters are in `params` (declared
+/// by the plug-in with [`crate::params!`], read when it is built).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(default)]
 pub struct RenderConfig {
     /// Integrator name (`path`).
     pub integrator: String,
@@ -26,94 +28,61 @@ pub struct RenderConfig {
     pub threads: usize,
     /// Override of the scene camera's resolution `[width, height]`.
     pub resolution: Option<[u32; 2]>,
-
-    // ---- photon integrator (ignored by `path`) ----
-    /// Photons stored in the direct + indirect (global) maps.
-    pub photons: u32,
-    /// Photons stored in the caustic map.
-    pub caustic_photons: u32,
-    /// Emit exactly this many photon paths (required by the `hammersley` sampler)
-    /// instead of emitting until the maps hold the requested counts.
-    pub emit_photons: Option<u64>,
-    /// Cap on emitted photon paths.
-    pub max_emitted: u64,
-    /// Indirect-light method: `direct`, `final_gather`, `precomputed`, `irradiance_cache`.
-    pub gather: String,
-    /// Final-gather rays at the first level.
-    pub gather_samples: u32,
-    /// Final-gather levels (≥ 1); each deeper level uses 1/8 of the rays of the one above.
-    pub gather_bounces: u32,
-    /// Let `irradiance_cache` gather over Christensen's precomputed irradiance
-    /// (`precomputed` always uses it, `final_gather` never does).
-    pub precomputed_irradiance: bool,
-    /// Precompute irradiance at every n-th global photon.
-    pub precompute_stride: u32,
-    /// Photons per global radiance estimate.
-    pub k: u32,
-    /// Photons per caustic radiance estimate.
-    pub caustic_k: u32,
-    /// Maximum search radius of global estimates (scene units); default 3 × the
-    /// radius holding `k` photons at the mean density of the stored global photons
-    /// over the triangles they landed on.
-    pub max_radius: Option<f32>,
-    /// Maximum search radius of caustic estimates; default 3 × the radius holding
-    /// `caustic_k` caustic photons at their mean density.
-    pub caustic_max_radius: Option<f32>,
-    /// Density-estimation filter: `box`, `cone`, `gaussian`.
-    pub filter: String,
-    /// Half thickness of the disc photons must lie in, as a fraction of the maximum
-    /// radius (≥ 1: a sphere, i.e. no disc).
-    pub disc: f32,
-    /// Shadow rays per shading point for direct light (distribution ray tracing).
-    pub direct_samples: u32,
-    /// Sampler for direct-light samples at each shading point.
-    pub direct_sampler: String,
-    /// Irradiance-cache error tolerance a (Ward): entries with weight > 1/a are used.
-    pub ic_tolerance: f32,
-    /// Smallest irradiance-cache valid radius, fraction of the bounding radius.
-    pub ic_min_radius: f32,
-    /// Largest irradiance-cache valid radius, fraction of the bounding radius.
-    pub ic_max_radius: f32,
-    /// Smallest irradiance-cache valid radius in pixel footprints at the entry
-    /// (Tabellion & Lamorlette 2004); an entry is used within `ic_tolerance` × radius.
-    pub ic_min_pixels: f32,
-    /// Largest irradiance-cache valid radius in pixel footprints at the entry.
-    pub ic_max_pixels: f32,
-    /// Irradiance gradients (Ward & Heckbert 1992) in the cache's interpolation, and
-    /// the radius limit E/|∇E| (Křivánek et al. 2006).
-    pub ic_gradients: bool,
-    /// Rays per irradiance-cache entry (stratified M × N with N ≈ πM). Entries are
-    /// few and each is reused over many pixels, so an entry's noise becomes a blotch:
-    /// they get more rays than a per-pixel final gather.
-    pub ic_samples: u32,
-    /// Neighbour clamping of cache radii (Křivánek et al. 2006): R_i ≤ R_j + |p_i − p_j|.
-    pub ic_neighbor_clamp: bool,
-    /// Rays drawn from the glossy lobe at glossy gathering points (the diffuse part
-    /// uses the final gather or the cache).
-    pub glossy_samples: u32,
-
-    // ---- progressive integrators (`sppm`, `ppm`; ignored by the others) ----
-    /// Passes to run; absent = 16, or unbounded when `time_limit` is set.
-    pub passes: Option<u32>,
-    /// Photon paths emitted per pass (`sppm`: default 2^17; `ppm`: when set, each
-    /// pass emits exactly this many instead of filling `photons` / `caustic_photons`).
-    pub photons_per_pass: Option<u64>,
-    /// Radius-reduction parameter α ∈ (0, 1] (1 = radius never shrinks).
-    pub alpha: f32,
-    /// Stop after the pass that crosses this many seconds.
-    pub time_limit: Option<f64>,
-    /// `sppm`: initial per-pixel radius (scene units); default 0.02 × the scene radius.
-    pub sppm_radius: Option<f32>,
-    /// `sppm`: direct light by `trace` (shadow rays at the visible point) or `photons`.
-    pub sppm_direct: String,
-    /// Experiment runner: also measure the image after these passes.
+    /// Experiment runner: also measure the image after these passes (progressive integrators).
     pub record_passes: Vec<u32>,
-    /// Write the progressive state to `checkpoint_file` after every this many passes.
-    pub checkpoint_every: Option<u32>,
-    /// State file of `checkpoint_every` / `resume` (`render` sets OUT.checkpoint.json).
-    pub checkpoint_file: Option<String>,
-    /// Continue from `checkpoint_file` (bit-identical to an uninterrupted run).
-    pub resume: bool,
+    /// The chosen plug-ins' parameters (any other key).
+    #[serde(flatten)]
+    pub params: Params,
+}
+
+macro_rules! common {
+    ($($name:literal : $ty:ty = $default:literal, $doc:literal;)*) => {
+        /// The common keys as a parameter table (docs, the command line's `--set`, manifests).
+        pub const COMMON: &[ParamDef] = &[$(ParamDef {
+            name: $name,
+            ty: <$ty as ParamValue>::TYPE,
+            default: $default,
+            doc: $doc,
+            check: <$ty as ParamValue>::check,
+            parse: <$ty as ParamValue>::parse_text,
+            flag: false,
+        }),*];
+    };
+}
+
+common! {
+    "integrator": String = "path", "Integrator plug-in (`integrator` family below).";
+    "spp": u32 = "16", "Samples per pixel.";
+    "sampler": String = "halton", "Sampler plug-in (`sampler` family below).";
+    "accel": String = "bvh8", "Accelerator plug-in (`accel` family below).";
+    "rr": String = "throughput", "Russian-roulette policy `NAME[:PARAM]` (`rr` family below).";
+    "max_depth": Option<u32> = "auto", "Maximum number of bounces; `auto` = unbounded (a safety cap of 1024 ends paths trapped between mirrors).";
+    "seed": u64 = "0", "Random seed.";
+    "threads": usize = "0", "Worker threads; 0 = all cores (images are bit-identical for any count).";
+    "resolution": Option<Resolution> = "auto", "Image size `WIDTHxHEIGHT` (manifests: `[w, h]`); `auto` = the scene camera's.";
+    "record_passes": Vec<u32> = "", "Experiment runner: also measure the image after these passes (progressive integrators).";
+}
+
+/// An image size, `WxH` on the command line and `[w, h]` in TOML.
+pub struct Resolution(pub [u32; 2]);
+
+impl ParamValue for Resolution {
+    const TYPE: &'static str = "WxH";
+    fn from_toml(v: &toml::Value) -> Result<Self, String> {
+        let a = v.as_array().filter(|a| a.len() == 2).ok_or_else(|| "expected [width, height]".to_string())?;
+        let w = u32::from_toml(&a[0])?;
+        let h = u32::from_toml(&a[1])?;
+        if w == 0 || h == 0 {
+            return Err(format!("resolution must be positive, got {w}x{h}"));
+        }
+        Ok(Resolution([w, h]))
+    }
+    fn from_text(s: &str) -> Result<Self, String> {
+        parse_resolution(s).map(Resolution)
+    }
+    fn to_toml(&self) -> Option<toml::Value> {
+        Some(toml::Value::Array(self.0.iter().map(|&x| toml::Value::Integer(x as i64)).collect()))
+    }
 }
 
 /// Depth cap when `max_depth` is unset. A path (or photon) caught by total internal
@@ -129,6 +98,48 @@ impl RenderConfig {
     pub fn depth_limit(&self) -> u32 {
         self.max_depth.unwrap_or(SAFETY_MAX_DEPTH)
     }
+
+    /// This configuration with plug-in parameter `key` set to `value` (tests, builders).
+    pub fn with(mut self, key: &str, value: impl Into<toml::Value>) -> Self {
+        self.params.set(key, value);
+        self
+    }
+
+    /// Sets any key from command-line text: a common key, or a plug-in parameter
+    /// declared in `catalogue` (type-checked against its declaration).
+    pub fn set_text(&mut self, key: &str, text: &str, catalogue: &crate::param::docs::Catalogue) -> anyhow::Result<()> {
+        let def =
+            catalogue.find(key).ok_or_else(|| anyhow::anyhow!("unknown parameter `{key}` (`photonlab plugins` lists every parameter)"))?;
+        let v = (def.parse)(text).map_err(|e| anyhow::anyhow!("parameter `{key}`: {e}"))?;
+        if COMMON.iter().any(|d| d.name == key) {
+            let mut t = toml::Table::new();
+            if let Some(v) = v {
+                t.insert(key.to_string(), v);
+            }
+            let one: RenderConfig = t.try_into().map_err(|e: toml::de::Error| anyhow::anyhow!("parameter `{key}`: {}", e.message()))?;
+            match key {
+                "integrator" => self.integrator = one.integrator,
+                "spp" => self.spp = one.spp,
+                "sampler" => self.sampler = one.sampler,
+                "accel" => self.accel = one.accel,
+                "rr" => self.rr = one.rr,
+                "max_depth" => self.max_depth = one.max_depth,
+                "seed" => self.seed = one.seed,
+                "threads" => self.threads = one.threads,
+                "resolution" => self.resolution = one.resolution,
+                "record_passes" => self.record_passes = one.record_passes,
+                _ => anyhow::bail!("common key `{key}` cannot be set from text"),
+            }
+        } else {
+            match v {
+                Some(v) => self.params.set(key, v),
+                None => {
+                    self.params.remove(key);
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for RenderConfig {
@@ -143,42 +154,8 @@ impl Default for RenderConfig {
             seed: 0,
             threads: 0,
             resolution: None,
-            photons: 200_000,
-            caustic_photons: 50_000,
-            emit_photons: None,
-            max_emitted: 20_000_000,
-            gather: "irradiance_cache".into(),
-            gather_samples: 64,
-            gather_bounces: 1,
-            precomputed_irradiance: true,
-            precompute_stride: 4,
-            k: 100,
-            caustic_k: 60,
-            max_radius: None,
-            caustic_max_radius: None,
-            filter: "cone".into(),
-            disc: 0.25,
-            direct_samples: 4,
-            direct_sampler: "hammersley".into(),
-            ic_tolerance: 0.3,
-            ic_min_radius: 0.01,
-            ic_max_radius: 0.25,
-            ic_min_pixels: 10.0,
-            ic_max_pixels: 100.0,
-            ic_gradients: true,
-            ic_samples: 256,
-            ic_neighbor_clamp: true,
-            glossy_samples: 16,
-            passes: None,
-            photons_per_pass: None,
-            alpha: 2.0 / 3.0,
-            time_limit: None,
-            sppm_radius: None,
-            sppm_direct: "trace".into(),
             record_passes: Vec::new(),
-            checkpoint_every: None,
-            checkpoint_file: None,
-            resume: false,
+            params: Params::default(),
         }
     }
 }
@@ -218,12 +195,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn unknown_keys_rejected() {
-        let ok: RenderConfig = toml::from_str("spp = 4\nsampler = \"random\"").unwrap();
-        assert_eq!(ok.spp, 4);
-        assert_eq!(ok.accel, "bvh8");
-        let err = toml::from_str::<RenderConfig>("spp = 4\nbogus = 1").unwrap_err();
-        assert!(err.to_string().contains("bogus"), "{err}");
+    fn plugin_keys_go_to_params_and_common_defaults_match_their_table() {
+        let ok: RenderConfig = toml::from_str("spp = 4\nsampler = \"random\"\nic_tolerance = 0.2").unwrap();
+        assert_eq!((ok.spp, ok.accel.as_str()), (4, "bvh8"));
+        assert_eq!(ok.params.raw("ic_tolerance"), Some(&toml::Value::Float(0.2)));
+        // Every COMMON default, set from its text, gives the Default value.
+        let cat = crate::param::docs::Catalogue { common: COMMON, families: Vec::new(), groups: Vec::new() };
+        crate::param::check_defs(COMMON).unwrap();
+        for d in COMMON {
+            let mut c = RenderConfig { spp: 99, seed: 7, threads: 3, ..Default::default() };
+            c.set_text(d.name, d.default, &cat).unwrap();
+            let mut want = RenderConfig { spp: 99, seed: 7, threads: 3, ..Default::default() };
+            match d.name {
+                "spp" => want.spp = 16,
+                "seed" => want.seed = 0,
+                "threads" => want.threads = 0,
+                _ => {}
+            }
+            assert_eq!(c, want, "{}", d.name);
+        }
+        let mut c = RenderConfig::default();
+        c.set_text("resolution", "64x32", &cat).unwrap();
+        assert_eq!(c.resolution, Some([64, 32]));
+        assert!(c.set_text("bogus", "1", &cat).is_err());
+        assert!(c.set_text("spp", "x", &cat).is_err());
     }
 
     #[test]

@@ -1,44 +1,31 @@
-//! The one place where configuration names become plug-ins. To add a strategy,
-//! implement its trait in its family's folder and add one arm here.
+//! The one place where configuration names become plug-ins, and the catalogue of
+//! every plug-in and its parameters (`photonlab plugins`). To add a strategy,
+//! implement its trait in its family's folder, add one arm here and one catalogue
+//! entry. Families whose plug-ins others build too (samplers, RR policies) have their
+//! by-name constructor in their own `mod.rs` (re-exported here), so no plug-in needs
+//! this module.
 
 use crate::accel::{Accel, bvh::Bvh, bvh4::Bvh4, bvh8::Bvh8, bvh8q::Bvh8q, linear::Linear};
-use crate::config::{RenderConfig, StrategySpec};
-use crate::integrator::{Integrator, path::PathIntegrator, photon::PhotonIntegrator, ppm::PpmIntegrator, sppm::SppmIntegrator};
-use crate::rr::{RussianRoulette, albedo::Albedo, fixed::Fixed, off::Off, throughput::Throughput};
-use crate::sampler::{Sampler, halton::HaltonSampler, hammersley::HammersleySampler, random::RandomSampler};
+use crate::config::{COMMON, RenderConfig};
+use crate::integrator::photon::gather::{GatherParams, irradiance_cache::CacheSettings, precomputed::PrecomputedParams};
+use crate::integrator::photon::{DirectParams, PhotonIntegrator, PhotonParams};
+use crate::integrator::progressive::ProgressiveParams;
+use crate::integrator::sppm::SppmParams;
+use crate::integrator::{Integrator, path::PathIntegrator, ppm::PpmIntegrator, sppm::SppmIntegrator};
+use crate::param::Reader;
+use crate::param::docs::{Catalogue, Family, Group, Plugin};
+pub use crate::rr::{NAMES as RR_POLICIES, make as make_rr};
+pub use crate::sampler::{NAMES as SAMPLERS, check as check_sampler, make as make_sampler};
 use anyhow::{Result, bail};
 use glam::Vec3;
 
-/// Sampler names.
-pub const SAMPLERS: &[&str] = &["random", "halton", "hammersley"];
 /// Accelerator names.
 pub const ACCELS: &[&str] = &["none", "bvh", "bvh4", "bvh8", "bvh8q"];
-/// Russian-roulette policy names.
-pub const RR_POLICIES: &[&str] = &["off", "fixed", "albedo", "throughput"];
 /// Integrator names.
 pub const INTEGRATORS: &[&str] = &["path", "photon", "sppm", "ppm"];
 
 fn unknown(kind: &str, name: &str, known: &[&str]) -> anyhow::Error {
     anyhow::anyhow!("unknown {kind} `{name}` (known: {})", known.join(", "))
-}
-
-/// Builds a sampler. `count` is the number of samples per stream when known up
-/// front (required by `hammersley`).
-pub fn make_sampler(name: &str, seed: u64, count: Option<u64>) -> Result<Box<dyn Sampler>> {
-    Ok(match name {
-        "random" => Box::new(RandomSampler::new(seed)),
-        "halton" => Box::new(HaltonSampler::new(seed)),
-        "hammersley" => match count {
-            Some(n) => Box::new(HammersleySampler::new(seed, n).map_err(anyhow::Error::msg)?),
-            None => bail!("sampler `hammersley` needs the sample count up front, which is unknown here; use `halton` or `random`"),
-        },
-        _ => return Err(unknown("sampler", name, SAMPLERS)),
-    })
-}
-
-/// Checks a sampler name without building it.
-pub fn check_sampler(name: &str) -> Result<()> {
-    if SAMPLERS.contains(&name) { Ok(()) } else { Err(unknown("sampler", name, SAMPLERS)) }
 }
 
 /// Builds an accelerator over the triangles.
@@ -58,73 +45,68 @@ pub fn check_accel(name: &str) -> Result<()> {
     if ACCELS.contains(&name) || name == "linear" { Ok(()) } else { Err(unknown("accel", name, ACCELS)) }
 }
 
-/// Builds a Russian-roulette policy from `NAME[:PARAM]`.
-pub fn make_rr(spec: &str) -> Result<Box<dyn RussianRoulette>> {
-    let s = StrategySpec::parse(spec);
-    let param_f = |default: f32| -> Result<f32> {
-        match &s.param {
-            None => Ok(default),
-            Some(p) => p.parse::<f32>().map_err(|_| anyhow::anyhow!("rr `{spec}`: parameter `{p}` is not a number")),
-        }
-    };
-    Ok(match s.name.as_str() {
-        "off" | "fixed" | "albedo" | "throughput" => match s.name.as_str() {
-            "off" => {
-                if s.param.is_some() {
-                    bail!("rr `off` takes no parameter (set the depth with max_depth)");
-                }
-                Box::new(Off)
-            }
-            "fixed" => Box::new(Fixed::new(param_f(Fixed::DEFAULT_Q)?).map_err(anyhow::Error::msg)?),
-            "albedo" => {
-                if s.param.is_some() {
-                    bail!("rr `albedo` takes no parameter");
-                }
-                Box::new(Albedo)
-            }
-            _ => {
-                let d = match &s.param {
-                    None => Throughput::DEFAULT_MIN_DEPTH,
-                    Some(p) => p.parse::<u32>().map_err(|_| anyhow::anyhow!("rr `{spec}`: minimum depth `{p}` is not a whole number"))?,
-                };
-                Box::new(Throughput::new(d))
-            }
-        },
-        _ => return Err(unknown("rr policy", &s.name, RR_POLICIES)),
-    })
-}
-
 /// Builds the integrator a configuration names (checking its settings).
 pub fn make_integrator(cfg: &RenderConfig) -> Result<Box<dyn Integrator>> {
     make_integrator_with(cfg, true)
 }
 
 /// As [`make_integrator`], with progress bars for long pre-passes unless `quiet`.
+/// Every plug-in reads its own parameters; a key none of the chosen plug-ins read is
+/// an error naming the key, its owner and the plug-ins chosen.
 pub fn make_integrator_with(cfg: &RenderConfig, quiet: bool) -> Result<Box<dyn Integrator>> {
+    make_integrator_allowing(cfg, quiet, &|_| false).map(|(i, _)| i)
+}
+
+/// As [`make_integrator_with`], but keys for which `allowed` holds may go unused;
+/// returns them with the integrator (the manifest's `[base]` keys: they must be used by
+/// some of its configurations, not by each).
+pub fn make_integrator_allowing(
+    cfg: &RenderConfig,
+    quiet: bool,
+    allowed: &dyn Fn(&str) -> bool,
+) -> Result<(Box<dyn Integrator>, Vec<String>)> {
     let rr = make_rr(&cfg.rr)?;
     let max_depth = cfg.depth_limit();
     if rr.never_terminates() && cfg.max_depth.is_none() {
         bail!("rr `off` never ends a path: give a finite max_depth (--max-depth N)");
     }
-    Ok(match cfg.integrator.as_str() {
-        "path" | "photon" => {
-            crate::integrator::progressive::reject_for_fixed_budget(cfg)?;
-            match cfg.integrator.as_str() {
-                "path" => Box::new(PathIntegrator { max_depth, rr, output: Default::default() }),
-                _ => Box::new(PhotonIntegrator::new(cfg, rr, quiet)?),
-            }
-        }
-        "sppm" => Box::new(SppmIntegrator::new(cfg, rr, quiet)?),
-        "ppm" => Box::new(PpmIntegrator::new(cfg, quiet)?),
+    let r = Reader::new(&cfg.params);
+    r.chose(format!("integrator `{}`", cfg.integrator));
+    let integrator: Box<dyn Integrator> = match cfg.integrator.as_str() {
+        "path" => Box::new(PathIntegrator { max_depth, rr, output: Default::default() }),
+        "photon" => Box::new(PhotonIntegrator::new(cfg, &r, rr, quiet)?),
+        "sppm" => Box::new(SppmIntegrator::new(cfg, &r, rr, quiet)?),
+        "ppm" => Box::new(PpmIntegrator::new(cfg, &r, quiet)?),
         other => return Err(unknown("integrator", other, INTEGRATORS)),
-    })
+    };
+    let unused = r.unused();
+    if let Some(key) = unused.iter().find(|k| !allowed(k)) {
+        return Err(unused_error(key, &r.chosen()));
+    }
+    if !cfg.record_passes.is_empty() && !integrator.is_progressive() {
+        bail!("record_passes only applies to the progressive integrators (sppm, ppm), not `{}`", cfg.integrator);
+    }
+    Ok((integrator, unused))
+}
+
+/// The error for a key none of the chosen plug-ins read.
+pub fn unused_error(key: &str, chosen: &str) -> anyhow::Error {
+    match catalogue().owner(key) {
+        Some(owner) => anyhow::anyhow!("parameter `{key}` belongs to {owner}, which this configuration does not use (chosen: {chosen})"),
+        None => anyhow::anyhow!("unknown parameter `{key}` (chosen: {chosen}; `photonlab plugins` lists every parameter)"),
+    }
 }
 
 /// Validates every name and number of a configuration without building anything heavy.
 pub fn validate(cfg: &RenderConfig) -> Result<()> {
+    validate_allowing(cfg, &|_| false).map(|_| ())
+}
+
+/// As [`validate`], letting keys for which `allowed` holds go unused; returns them.
+pub fn validate_allowing(cfg: &RenderConfig, allowed: &dyn Fn(&str) -> bool) -> Result<Vec<String>> {
     check_sampler(&cfg.sampler)?;
     check_accel(&cfg.accel)?;
-    make_integrator(cfg)?;
+    let (_, unused) = make_integrator_allowing(cfg, true, allowed)?;
     if cfg.spp == 0 {
         bail!("spp must be at least 1");
     }
@@ -133,12 +115,166 @@ pub fn validate(cfg: &RenderConfig) -> Result<()> {
     {
         bail!("resolution must be positive, got {w}x{h}");
     }
-    Ok(())
+    Ok(unused)
+}
+
+fn plugin(name: &'static str, doc: &'static str) -> Plugin {
+    Plugin { name, doc, params: &[], groups: &[] }
+}
+
+/// Every family, plug-in and parameter, from the plug-ins' own declarations.
+pub fn catalogue() -> Catalogue {
+    let families = vec![
+        Family {
+            key: "integrator",
+            doc: "how radiance is estimated",
+            plugins: vec![
+                plugin("path", "Unbiased path tracing: next-event estimation + BSDF sampling with MIS; the reference."),
+                Plugin {
+                    name: "photon",
+                    doc: "Photon mapping (Jensen; the design report): ray-traced direct light, caustic map, indirect light by the `gather` plug-in.",
+                    params: PhotonParams::DEFS,
+                    groups: &["direct-light"],
+                },
+                Plugin {
+                    name: "sppm",
+                    doc: "Stochastic progressive photon mapping (Hachisuka & Jensen 2009): per-pixel statistics, radius shrinking with `alpha`.",
+                    params: SppmParams::DEFS,
+                    groups: &["progressive", "direct-light"],
+                },
+                Plugin {
+                    name: "ppm",
+                    doc: "Probabilistic progressive photon mapping (Knaus & Zwicker 2011): each pass a `photon` render with a shrinking global radius, averaged.",
+                    params: &[],
+                    groups: &["progressive", "integrator `photon`", "direct-light"],
+                },
+            ],
+        },
+        Family {
+            key: "gather",
+            doc: "indirect light at the first diffuse hit (integrators `photon`, `ppm`)",
+            plugins: vec![
+                plugin("direct", "Direct visualisation of the indirect photon map (the noisy baseline)."),
+                Plugin {
+                    name: "final_gather",
+                    doc: "Final gathering: a photon estimate where each gather ray lands.",
+                    params: &[],
+                    groups: &["gather"],
+                },
+                Plugin {
+                    name: "precomputed",
+                    doc: "Final gathering over Christensen's precomputed irradiance.",
+                    params: PrecomputedParams::DEFS,
+                    groups: &["gather"],
+                },
+                Plugin {
+                    name: "irradiance_cache",
+                    doc: "Ward's irradiance cache with gradients and neighbour clamping, prefilled deterministically.",
+                    params: CacheSettings::DEFS,
+                    groups: &["gather", "`precomputed`"],
+                },
+            ],
+        },
+        Family {
+            key: "filter",
+            doc: "density-estimation kernel of photon estimates (key of `photon`)",
+            plugins: vec![
+                plugin("box", "Constant weight."),
+                plugin("cone", "Jensen's cone filter w = 1 − d/(k·r), k = 1.1."),
+                plugin("gaussian", "Jensen's Gaussian filter (α = 0.918, β = 1.953)."),
+            ],
+        },
+        Family {
+            key: "sampler",
+            doc: "sample points for pixels, bounces, photons and gathers",
+            plugins: vec![
+                plugin("random", "Independent uniform samples (PCG32)."),
+                plugin("halton", "Halton with random digit permutations per dimension and a per-pixel Cranley–Patterson rotation."),
+                plugin("hammersley", "Hammersley point set (needs the sample count up front)."),
+            ],
+        },
+        Family {
+            key: "accel",
+            doc: "ray-triangle acceleration structure",
+            plugins: vec![
+                plugin("none", "Tests every triangle (alias `linear`)."),
+                plugin("bvh", "Binary binned-SAH BVH."),
+                plugin("bvh4", "A spatial-split SAH tree collapsed to 4-wide SIMD nodes."),
+                plugin(
+                    "bvh8",
+                    "The same collapsed to 8-wide nodes (AVX2 traversal; faster than Embree on the same rays, see `bench embree`).",
+                ),
+                plugin("bvh8q", "`bvh8` with 8-bit quantised child boxes: half the node memory, 0.7–0.9× the speed."),
+            ],
+        },
+        Family {
+            key: "rr",
+            doc: "Russian-roulette policy, written `NAME[:PARAM]`",
+            plugins: vec![
+                plugin("off", "No roulette (needs `max_depth`)."),
+                plugin("fixed", "Survive with probability q, `fixed:Q` (default 0.8)."),
+                plugin("albedo", "Survive with the surface reflectance."),
+                plugin("throughput", "After D bounces survive with the max channel of the throughput, `throughput:D` (default 3)."),
+            ],
+        },
+    ];
+    let groups = vec![
+        Group {
+            name: "progressive",
+            doc: "pass budget, radius schedule and checkpoints of `sppm` and `ppm`",
+            params: ProgressiveParams::DEFS,
+        },
+        Group { name: "direct-light", doc: "direct light by distribution ray tracing", params: DirectParams::DEFS },
+        Group { name: "gather", doc: "the final gather shared by the gathering plug-ins", params: GatherParams::DEFS },
+    ];
+    Catalogue { common: COMMON, families, groups }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn catalogue_is_complete_and_consistent() {
+        let cat = catalogue();
+        let names = |key: &str| -> Vec<&str> {
+            cat.families.iter().find(|f| f.key == key).map(|f| f.plugins.iter().map(|p| p.name).collect()).unwrap_or_default()
+        };
+        assert_eq!(names("integrator"), INTEGRATORS);
+        assert_eq!(names("sampler"), SAMPLERS);
+        assert_eq!(names("accel"), ACCELS);
+        assert_eq!(names("rr"), RR_POLICIES);
+        assert_eq!(names("gather"), crate::integrator::photon::gather::GATHERS);
+        assert_eq!(names("filter"), crate::photon::estimate::Filter::NAMES);
+        // Every table's defaults parse; no key is declared twice anywhere.
+        let mut seen = std::collections::BTreeSet::new();
+        for d in cat.all_params() {
+            assert!(seen.insert(d.name), "`{}` declared twice", d.name);
+        }
+        crate::param::check_defs(&cat.all_params().copied().collect::<Vec<_>>()).unwrap();
+        // The RR docs state the policies' real defaults.
+        let rr = &cat.families.iter().find(|f| f.key == "rr").unwrap().plugins;
+        assert!(rr[1].doc.contains(&format!("default {}", crate::rr::fixed::Fixed::DEFAULT_Q)));
+        assert!(rr[3].doc.contains(&format!("default {}", crate::rr::throughput::Throughput::DEFAULT_MIN_DEPTH)));
+        assert!(cat.owner("ic_tolerance").unwrap().contains("irradiance_cache"));
+        assert!(cat.owner("alpha").unwrap().contains("sppm"));
+    }
+
+    #[test]
+    fn unused_keys_name_their_owner_and_the_chosen_plugins() {
+        let e = make_integrator(&RenderConfig::default().with("ic_tolerance", 0.2)).err().unwrap().to_string();
+        assert!(e.contains("ic_tolerance") && e.contains("gather `irradiance_cache`") && e.contains("integrator `path`"), "{e}");
+        let photon = RenderConfig { integrator: "photon".into(), ..Default::default() };
+        assert!(make_integrator(&photon.clone().with("ic_tolerance", 0.2)).is_ok());
+        let e = make_integrator(&photon.clone().with("gather", "final_gather").with("ic_tolerance", 0.2)).err().unwrap().to_string();
+        assert!(e.contains("gather `final_gather`"), "{e}");
+        let e = make_integrator(&photon.clone().with("bogus", 1)).err().unwrap().to_string();
+        assert!(e.contains("unknown parameter `bogus`"), "{e}");
+        let e = make_integrator(&photon.with("passes", 3)).err().unwrap().to_string();
+        assert!(e.contains("progressive"), "{e}");
+        let e = make_integrator(&RenderConfig { record_passes: vec![2], ..Default::default() }).err().unwrap().to_string();
+        assert!(e.contains("record_passes"), "{e}");
+    }
 
     #[test]
     fn names_resolve_and_unknown_names_fail() {

@@ -6,7 +6,16 @@ use photonlab::pipeline::render_scene;
 use photonlab::scene::builtin::{cornell, cornell_glass, furnace};
 
 fn photon_cfg(gather: &str, photons: u32) -> RenderConfig {
-    RenderConfig { integrator: "photon".into(), gather: gather.into(), photons, caustic_photons: 0, spp: 4, seed: 5, ..Default::default() }
+    RenderConfig { integrator: "photon".into(), spp: 4, seed: 5, ..Default::default() }
+        .with("gather", gather)
+        .with("photons", photons)
+        .with("caustic_photons", 0)
+}
+
+/// `cfg` with `gather_samples` = n, for the plug-ins that gather (`direct` has no such
+/// parameter, and setting it would be an error).
+fn gather_samples(cfg: RenderConfig, n: u32) -> RenderConfig {
+    if cfg.params.raw("gather").and_then(|v| v.as_str()) == Some("direct") { cfg } else { cfg.with("gather_samples", n) }
 }
 
 /// Mean squared error per channel after a box blur of radius `r` pixels, which keeps
@@ -64,7 +73,7 @@ fn white_furnace_energy() {
     let (a, le) = (0.5f32, 1.0f32);
     let expect = le / (1.0 - a);
     for gather in ["direct", "final_gather", "precomputed", "irradiance_cache"] {
-        let cfg = RenderConfig { resolution: Some([12, 12]), gather_samples: 32, ..photon_cfg(gather, 100_000) };
+        let cfg = gather_samples(RenderConfig { resolution: Some([12, 12]), ..photon_cfg(gather, 100_000) }, 32);
         let out = render_scene(furnace(a, le, 24), &cfg, true).unwrap();
         let m = out.film.mean();
         for c in m.to_array() {
@@ -85,19 +94,19 @@ fn cornell_convergence_and_low_frequency_noise() {
     // count: this test compares the methods at equal photons and radius (the default
     // radius follows the photon density and would blur the 2,000-photon maps).
     let err = |cfg: RenderConfig| {
-        let f = render_scene(cornell(), &RenderConfig { resolution: res, spp: 16, max_radius: Some(48.0), ..cfg }, true).unwrap().film;
+        let f = render_scene(cornell(), &RenderConfig { resolution: res, spp: 16, ..cfg }.with("max_radius", 48.0), true).unwrap().film;
         blurred_mse(&f, &reference, 3)
     };
     let ladder: Vec<f64> = [2_000, 16_000, 128_000].iter().map(|&n| err(photon_cfg("direct", n))).collect();
     assert!(ladder[1] < ladder[0] && ladder[2] < ladder[1], "direct visualisation error should fall with photons: {ladder:?}");
-    let fg = err(RenderConfig { gather_samples: 64, ..photon_cfg("final_gather", 2_000) });
-    let ic = err(RenderConfig { gather_samples: 64, ..photon_cfg("irradiance_cache", 2_000) });
+    let fg = err(photon_cfg("final_gather", 2_000).with("gather_samples", 64));
+    let ic = err(photon_cfg("irradiance_cache", 2_000).with("gather_samples", 64));
     eprintln!("ladder {ladder:?} fg {fg} ic {ic}");
     assert!(fg < 0.5 * ladder[0], "final gather {fg} vs direct visualisation {}", ladder[0]);
     assert!(ic < 0.5 * ladder[0], "irradiance cache {ic} vs direct visualisation {}", ladder[0]);
     // More gather rays reduce the final-gather error too.
-    let fg_few = err(RenderConfig { gather_samples: 4, ..photon_cfg("final_gather", 16_000) });
-    let fg_many = err(RenderConfig { gather_samples: 64, ..photon_cfg("final_gather", 16_000) });
+    let fg_few = err(photon_cfg("final_gather", 16_000).with("gather_samples", 4));
+    let fg_many = err(photon_cfg("final_gather", 16_000).with("gather_samples", 64));
     assert!(fg_many < fg_few, "gather samples: 4 -> {fg_few}, 64 -> {fg_many}");
 }
 
@@ -109,13 +118,8 @@ fn deterministic_across_thread_counts() {
         let imgs: Vec<Film> = [1, 2]
             .iter()
             .map(|&threads| {
-                let cfg = RenderConfig {
-                    threads,
-                    resolution: Some([24, 24]),
-                    caustic_photons: 5_000,
-                    gather_samples: 8,
-                    ..photon_cfg(gather, 5_000)
-                };
+                let cfg = RenderConfig { threads, resolution: Some([24, 24]), ..photon_cfg(gather, 5_000) }.with("caustic_photons", 5_000);
+                let cfg = gather_samples(cfg, 8);
                 render_scene(cornell_glass(), &cfg, true).unwrap().film
             })
             .collect();
@@ -127,7 +131,7 @@ fn deterministic_across_thread_counts() {
 /// caustic map must show (brighter than the floor beside the focus).
 #[test]
 fn glass_sphere_casts_a_caustic() {
-    let cfg = RenderConfig { resolution: Some([64, 64]), caustic_photons: 50_000, ..photon_cfg("irradiance_cache", 20_000) };
+    let cfg = RenderConfig { resolution: Some([64, 64]), ..photon_cfg("irradiance_cache", 20_000) }.with("caustic_photons", 50_000);
     let mut scene = cornell_glass();
     scene.camera = scene.camera.with_resolution(64, 64).unwrap();
     let out = photonlab::pipeline::render_scene_with_aovs(scene, &cfg, true, &["caustic".into()]).unwrap();
@@ -148,16 +152,15 @@ fn every_strategy_combination_runs() {
                 // Brute force on the 9k-triangle spheres would dominate the suite's time.
                 let scene = if accel == "none" { cornell() } else { cornell_glass() };
                 for rr in ["off", "fixed:0.7", "albedo", "throughput"] {
-                    let mut cfg = RenderConfig {
+                    let cfg = RenderConfig {
                         sampler: sampler.into(),
                         accel: accel.into(),
                         rr: rr.into(),
                         resolution: Some([6, 6]),
                         spp: 2,
-                        gather_samples: 4,
-                        caustic_photons: 300,
                         ..photon_cfg(gather, 500)
                     };
+                    let mut cfg = gather_samples(cfg.with("caustic_photons", 300), 4);
                     if rr == "off" {
                         let err = render_scene(scene.clone(), &cfg, true).err().expect("rr off without max_depth must fail");
                         assert!(err.to_string().contains("max_depth"), "{err}");
@@ -166,7 +169,7 @@ fn every_strategy_combination_runs() {
                     if sampler == "hammersley" {
                         let err = render_scene(scene.clone(), &cfg, true).err().expect("hammersley without emit_photons must fail");
                         assert!(err.to_string().contains("emit_photons"), "{err}");
-                        cfg.emit_photons = Some(2_000);
+                        cfg = cfg.with("emit_photons", 2_000);
                     }
                     let out = render_scene(scene.clone(), &cfg, true).unwrap_or_else(|e| panic!("{gather}/{sampler}/{accel}/{rr}: {e}"));
                     assert!(out.film.pixels.iter().all(|p| p.is_finite()), "{gather}/{sampler}/{accel}/{rr}");

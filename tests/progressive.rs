@@ -27,16 +27,11 @@ fn bits(f: &Film) -> Vec<u32> {
 #[test]
 fn every_pass_is_bit_identical_for_any_thread_count() {
     for (integrator, scene) in [("sppm", "cornell-glass"), ("ppm", "cornell-glass")] {
-        let cfg = RenderConfig {
-            integrator: integrator.into(),
-            resolution: Some([24, 24]),
-            passes: Some(3),
-            photons_per_pass: Some(6000),
-            gather: "direct".into(),
-            spp: 1,
-            seed: 5,
-            ..Default::default()
-        };
+        let cfg = RenderConfig { integrator: integrator.into(), resolution: Some([24, 24]), spp: 1, seed: 5, ..Default::default() }
+            .with("passes", 3)
+            .with("photons_per_pass", 6000);
+        // `ppm` renders with the photon integrator's gather; `sppm` has none.
+        let cfg = if integrator == "ppm" { cfg.with("gather", "direct") } else { cfg };
         let one = passes(scene, &RenderConfig { threads: 1, ..cfg.clone() });
         let two = passes(scene, &RenderConfig { threads: 2, ..cfg.clone() });
         assert_eq!(one.len(), 3);
@@ -47,7 +42,7 @@ fn every_pass_is_bit_identical_for_any_thread_count() {
         assert_ne!(bits(&one[0]), bits(&one[2]), "{integrator}");
         assert!(one[2].mean().max_element() > 0.01, "{integrator}");
         // Another seed gives another image.
-        let other = passes(scene, &RenderConfig { seed: 6, passes: Some(1), threads: 2, ..cfg });
+        let other = passes(scene, &RenderConfig { seed: 6, threads: 2, ..cfg }.with("passes", 1));
         assert_ne!(bits(&other[0]), bits(&one[0]), "{integrator}");
     }
 }
@@ -86,17 +81,15 @@ fn block_means_agree_with_the_path_tracer() {
 fn passes_or_render(integrator: &str, resolution: Option<[u32; 2]>) -> Film {
     let cfg = match integrator {
         "path" => RenderConfig { integrator: "path".into(), spp: 512, resolution, ..Default::default() },
-        _ => RenderConfig {
-            integrator: integrator.into(),
-            resolution,
-            passes: Some(if integrator == "sppm" { 48 } else { 12 }),
-            photons_per_pass: Some(40_000),
-            gather: "direct".into(),
-            spp: 4,
-            k: 400,
-            max_radius: Some(40.0),
-            ..Default::default()
-        },
+        "sppm" => RenderConfig { integrator: integrator.into(), resolution, ..Default::default() }
+            .with("passes", 48)
+            .with("photons_per_pass", 40_000),
+        _ => RenderConfig { integrator: integrator.into(), resolution, spp: 4, ..Default::default() }
+            .with("passes", 12)
+            .with("photons_per_pass", 40_000)
+            .with("gather", "direct")
+            .with("k", 400)
+            .with("max_radius", 40.0),
     };
     let mut cb = |_: u32, _: f64, _: &Film| {};
     render_scene_observed(builtin("cornell-glass").unwrap(), &cfg, true, &[], &mut cb).unwrap().film
@@ -104,13 +97,9 @@ fn passes_or_render(integrator: &str, resolution: Option<[u32; 2]>) -> Film {
 
 #[test]
 fn time_limit_stops_after_the_pass_that_crosses_it() {
-    let cfg = RenderConfig {
-        integrator: "sppm".into(),
-        resolution: Some([8, 8]),
-        time_limit: Some(1e-6),
-        photons_per_pass: Some(100),
-        ..Default::default()
-    };
+    let cfg = RenderConfig { integrator: "sppm".into(), resolution: Some([8, 8]), ..Default::default() }
+        .with("time_limit", 1e-6)
+        .with("photons_per_pass", 100);
     assert_eq!(passes("cornell", &cfg).len(), 1);
 }
 
@@ -191,7 +180,10 @@ fn resume_from_a_checkpoint_is_bit_identical() {
     let render = |integrator: &str, out: &str, extra: &[&str]| {
         let o = Command::new(env!("CARGO_BIN_EXE_photonlab"))
             .args(["render", "--builtin", "cornell-glass", "--resolution", "12x12", "--quiet", "--photons-per-pass", "3000"])
-            .args(["--integrator", integrator, "--gather", "direct", "--spp", "1", "-o"])
+            .args(["--integrator", integrator, "--spp", "1"])
+            // `ppm` renders with the photon integrator's gather; `sppm` has none.
+            .args(if integrator == "ppm" { &["--gather", "direct"][..] } else { &[] })
+            .arg("-o")
             .arg(dir.join(out))
             .args(extra)
             .output()

@@ -77,14 +77,14 @@ pub fn run(args: &ScalingArgs) -> Result<()> {
             let scene = builtin(&args.scene)?;
             let cfg = RenderConfig {
                 integrator: "photon".into(),
-                gather: "irradiance_cache".into(),
-                photons: args.photons,
-                caustic_photons: args.photons / 10,
                 spp: args.spp,
                 threads,
                 resolution: Some([args.size, args.size]),
                 ..RenderConfig::default()
-            };
+            }
+            .with("gather", "irradiance_cache")
+            .with("photons", args.photons)
+            .with("caustic_photons", args.photons / 10);
             let out = render_scene(scene, &cfg, true)?;
             for (j, (_, key)) in PHASES.iter().enumerate() {
                 let t = if *key == "render_s" { out.timings.render_s } else { out.extra.get(*key).copied().unwrap_or(f64::NAN) };

@@ -272,11 +272,16 @@ fn check_component(c: &Spanned<String>, loc: &Loc, configs: &[(String, RenderCon
     Ok(name.clone())
 }
 
-/// Checks one key/value pair against [`RenderConfig`] (unknown key or wrong type).
+/// Checks one key/value pair: a common key of [`RenderConfig`] or a parameter some
+/// plug-in declares, with the declared type (whether the chosen plug-ins use it is
+/// checked when the configuration is validated).
 fn check_key(key: &str, value: &Value) -> Result<(), String> {
     if TOP_LEVEL_ONLY.contains(&key) {
         return Err(format!("`{key}` is set once at the top level of the manifest, not per configuration"));
     }
+    let cat = crate::registry::catalogue();
+    let def = cat.find(key).ok_or_else(|| format!("unknown key `{key}` (`photonlab plugins` lists every parameter)"))?;
+    (def.check)(value).map_err(|e| format!("`{key}`: {e}"))?;
     let mut t = toml::Table::new();
     t.insert(key.to_string(), value.clone());
     t.try_into::<RenderConfig>().map(|_| ()).map_err(|e| e.message().replace('\n', " "))
@@ -433,13 +438,20 @@ impl Manifest {
 
         // Build and validate every cell before anything renders.
         let mut configs = Vec::new();
+        let mut never_used: Vec<String> = base.iter().map(|(k, _)| k.clone()).collect();
         let mut stems: BTreeMap<String, usize> = BTreeMap::new();
         let res_layer = vec![("resolution".to_string(), res_value.clone())];
         for (ci, d) in drafts.iter().enumerate() {
             let own: &[(String, Value)] = if d.overrides.is_empty() { &d.values } else { &d.overrides };
             let cfg = build_config(&[&base, own, &res_layer])
                 .map_err(|e| anyhow!("{}: configuration `{}`: {e}", loc.at(d.span.clone()), d.label))?;
-            if let Err(e) = registry::validate(&cfg) {
+            // A [base] key (not overridden here) only has to be used by some configuration.
+            let from_base = |k: &str| base.iter().any(|(b, _)| b == k) && !own.iter().any(|(o, _)| o == k);
+            let checked = registry::validate_allowing(&cfg, &from_base);
+            if let Ok(unused) = &checked {
+                never_used.retain(|k| unused.contains(k));
+            }
+            if let Err(e) = checked {
                 // Blame the first swept value that is invalid on its own over the base,
                 // else the configuration (the combination is what fails).
                 let mut blame = d.span.clone();
@@ -459,6 +471,11 @@ impl Manifest {
                 stem = format!("{stem}_{ci}");
             }
             configs.push((stem, cfg));
+        }
+        if let (Some(k), Some((_, cfg))) = (never_used.first(), configs.first()) {
+            let at = raw.base.as_ref().and_then(|b| b.get_ref().get(k)).map_or(0..0, |v| v.span());
+            let chosen = format!("integrator `{}` …", cfg.integrator);
+            bail!("{}: [base] {k}: no configuration uses it: {}", loc.at(at), registry::unused_error(k, &chosen));
         }
         // Several scenes: the scene is the outermost axis of every configuration.
         let multi = scenes.len() > 1;

@@ -38,6 +38,10 @@ pub trait Integrator: Send + Sync {
     fn debug_points(&self) -> Vec<glam::Vec3> {
         Vec::new()
     }
+    /// Whether this is a progressive integrator (renders in passes; `record_passes`).
+    fn is_progressive(&self) -> bool {
+        false
+    }
     /// Progressive integrators (`sppm`, `ppm`) render the whole image themselves, pass
     /// by pass, calling `on_pass` with each pass's image; `None` = use the render pass.
     fn render_progressive(&mut self, _world: &World, _on_pass: progressive::OnPass) -> Option<anyhow::Result<(Film, RenderStats)>> {

@@ -15,14 +15,13 @@
 //! `"final_gather"` for an estimate that converges to the exact image.
 
 use super::Integrator;
-use super::photon::{Output, PhotonIntegrator};
-use super::progressive::{Budget, OnPass, load_checkpoint, next_radius2, save_checkpoint};
+use super::photon::{Output, PhotonIntegrator, PhotonSetup};
+use super::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, next_radius2, save_checkpoint};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
 use crate::geometry::Ray;
 use crate::math::{Color, hash_words};
-use crate::registry;
 use crate::render::{RenderStats, render};
 use crate::sampler::Sampler;
 use crate::world::World;
@@ -32,34 +31,32 @@ use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-/// The configuration of pass `i` (from 1) with radii `r` (global) and `rc` (caustic).
-pub fn pass_config(cfg: &RenderConfig, i: u32, r: f32, rc: f32, has_specular: bool) -> RenderConfig {
+/// The common keys and photon settings of pass `i` (from 1) with radii `r` (global)
+/// and `rc` (caustic): an independent `photon` render with its own seed.
+pub fn pass_setup(
+    cfg: &RenderConfig,
+    base: &PhotonSetup,
+    prog: &ProgressiveParams,
+    i: u32,
+    r: f32,
+    rc: f32,
+    has_specular: bool,
+) -> (RenderConfig, PhotonSetup) {
     let mut c = cfg.clone();
     c.integrator = "photon".into();
     c.seed = hash_words(&[cfg.seed, i as u64, 0x9916]);
-    c.max_radius = Some(r);
-    c.caustic_max_radius = Some(rc);
-    if cfg.photons_per_pass.is_some() {
-        c.emit_photons = cfg.photons_per_pass;
+    c.record_passes = Vec::new();
+    c.params = Default::default();
+    let mut s = base.clone();
+    s.p.max_radius = Some(r);
+    s.p.caustic_max_radius = Some(rc);
+    if prog.photons_per_pass.is_some() {
+        s.p.emit_photons = prog.photons_per_pass;
     }
     if !has_specular {
-        c.caustic_photons = 0;
+        s.p.caustic_photons = 0;
     }
-    c.passes = None;
-    c.photons_per_pass = None;
-    c.time_limit = None;
-    c.record_passes = Vec::new();
-    (c.checkpoint_every, c.checkpoint_file, c.resume) = (None, None, false);
-    c
-}
-
-/// Checks the `ppm` settings (progressive keys + the photon integrator's).
-pub fn validate(cfg: &RenderConfig) -> Result<()> {
-    super::progressive::validate(cfg)?;
-    if cfg.sppm_radius.is_some() || cfg.sppm_direct != RenderConfig::default().sppm_direct {
-        anyhow::bail!("sppm_radius and sppm_direct apply to `sppm` only (ppm starts from max_radius / caustic_max_radius)");
-    }
-    super::photon::validate(&pass_config(cfg, 1, 1.0, 1.0, true))
+    (c, s)
 }
 
 /// The probabilistic progressive photon-mapping integrator.
@@ -68,27 +65,30 @@ pub struct PpmIntegrator {
     /// visualisation of the direct map, used by the statistical tests).
     pub output: Output,
     cfg: RenderConfig,
+    prog: ProgressiveParams,
+    photon: PhotonSetup,
     quiet: bool,
     counters: BTreeMap<String, f64>,
 }
 
 impl PpmIntegrator {
     /// Builds the integrator (checking its settings).
-    pub fn new(cfg: &RenderConfig, quiet: bool) -> Result<Self> {
-        validate(cfg)?;
-        Ok(PpmIntegrator { output: Output::All, cfg: cfg.clone(), quiet, counters: BTreeMap::new() })
+    pub fn new(cfg: &RenderConfig, r: &crate::param::Reader, quiet: bool) -> Result<Self> {
+        let prog = ProgressiveParams::read_checked(cfg, r)?;
+        let photon = PhotonSetup::read(cfg, r)?;
+        Ok(PpmIntegrator { output: Output::All, cfg: cfg.clone(), prog, photon, quiet, counters: BTreeMap::new() })
     }
 
     fn run(&mut self, world: &World, on_pass: OnPass) -> Result<(Film, RenderStats)> {
         let cam = &world.scene.camera;
-        let budget = Budget::new(&self.cfg);
+        let budget = Budget::new(&self.prog);
         let r_scene = world.lights.scene_radius;
-        let mut r2 = self.cfg.max_radius.unwrap_or(0.1 * r_scene) as f64;
+        let mut r2 = self.photon.p.max_radius.unwrap_or(0.1 * r_scene) as f64;
         r2 *= r2;
-        let mut rc2 = self.cfg.caustic_max_radius.unwrap_or(0.025 * r_scene) as f64;
+        let mut rc2 = self.photon.p.caustic_max_radius.unwrap_or(0.025 * r_scene) as f64;
         rc2 *= rc2;
         let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.is_delta());
-        let alpha = self.cfg.alpha as f64;
+        let alpha = self.prog.alpha as f64;
         let mut sum = vec![DVec3::ZERO; (cam.width * cam.height) as usize];
         let mut film = Film::new(cam.width, cam.height);
         let mut stats = RenderStats::default();
@@ -97,7 +97,7 @@ impl PpmIntegrator {
         let mut pass = 0u32;
         // Checkpoint state: pass sums, r², r_c² (f64 bit patterns).
         type State = (Vec<[u64; 3]>, u64, u64);
-        if let Some((done, (saved, a, b))) = load_checkpoint::<State>(&self.cfg, world)? {
+        if let Some((done, (saved, a, b))) = load_checkpoint::<State>(&self.cfg, &self.prog, world)? {
             if saved.len() != sum.len() {
                 anyhow::bail!("checkpoint holds {} pixels, the image has {}", saved.len(), sum.len());
             }
@@ -109,13 +109,13 @@ impl PpmIntegrator {
         let pb = crate::render::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "ppm");
         while budget.more(pass) {
             let i = pass + 1;
-            let pcfg = pass_config(&self.cfg, i, r2.sqrt() as f32, rc2.sqrt() as f32, has_specular);
-            let mut integrator = PhotonIntegrator::new(&pcfg, registry::make_rr(&pcfg.rr)?, true)?;
+            let (pcfg, setup) = pass_setup(&self.cfg, &self.photon, &self.prog, i, r2.sqrt() as f32, rc2.sqrt() as f32, has_specular);
+            let mut integrator = PhotonIntegrator::from_setup(&pcfg, setup, crate::rr::make(&pcfg.rr)?, true);
             integrator.output = self.output;
             let t0 = Instant::now();
             integrator.preprocess(world)?;
             t_pre += t0.elapsed().as_secs_f64();
-            let sampler = registry::make_sampler(&pcfg.sampler, pcfg.seed, Some(pcfg.spp as u64))?;
+            let sampler = crate::sampler::make(&pcfg.sampler, pcfg.seed, Some(pcfg.spp as u64))?;
             let (img, st) = render(world, &integrator, sampler.as_ref(), pcfg.spp, true);
             t_render += st.seconds;
             stats.traversal.add(&st.traversal);
@@ -129,9 +129,9 @@ impl PpmIntegrator {
             on_pass(pass, budget.elapsed(), &film);
             r2 = next_radius2(r2, i, alpha);
             rc2 = next_radius2(rc2, i, alpha);
-            if self.cfg.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
+            if self.prog.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
                 let state: State = (sum.iter().map(|v| v.to_array().map(f64::to_bits)).collect(), r2.to_bits(), rc2.to_bits());
-                save_checkpoint(&self.cfg, world, pass, &state)?;
+                save_checkpoint(&self.cfg, &self.prog, world, pass, &state)?;
             }
         }
         pb.finish_and_clear();
@@ -158,6 +158,10 @@ impl Integrator for PpmIntegrator {
         Color::ZERO
     }
 
+    fn is_progressive(&self) -> bool {
+        true
+    }
+
     fn render_progressive(&mut self, world: &World, on_pass: OnPass) -> Option<Result<(Film, RenderStats)>> {
         Some(self.run(world, on_pass))
     }
@@ -173,17 +177,20 @@ mod tests {
 
     #[test]
     fn pass_configs_are_independent_photon_renders() {
-        let cfg = RenderConfig { integrator: "ppm".into(), photons_per_pass: Some(5000), passes: Some(8), ..Default::default() };
-        let a = pass_config(&cfg, 1, 2.0, 0.5, false);
-        let b = pass_config(&cfg, 2, 1.0, 0.25, false);
+        let cfg = RenderConfig { integrator: "ppm".into(), ..Default::default() }.with("photons_per_pass", 5000).with("passes", 8);
+        let r = crate::param::Reader::new(&cfg.params);
+        let ppm = PpmIntegrator::new(&cfg, &r, true).unwrap();
+        let (a, sa) = pass_setup(&cfg, &ppm.photon, &ppm.prog, 1, 2.0, 0.5, false);
+        let (b, _) = pass_setup(&cfg, &ppm.photon, &ppm.prog, 2, 1.0, 0.25, false);
         assert_eq!(a.integrator, "photon");
         assert_ne!(a.seed, b.seed);
-        assert_eq!((a.max_radius, a.caustic_max_radius, a.emit_photons, a.caustic_photons), (Some(2.0), Some(0.5), Some(5000), 0));
-        assert!(super::super::progressive::reject_for_fixed_budget(&a).is_ok());
-        assert!(validate(&cfg).is_ok());
-        let bad = RenderConfig { sppm_radius: Some(1.0), ..cfg.clone() };
-        assert!(validate(&bad).unwrap_err().to_string().contains("sppm_radius"));
-        let bad = RenderConfig { gather: "nope".into(), ..cfg };
-        assert!(validate(&bad).unwrap_err().to_string().contains("nope"));
+        assert!(a.params.0.is_empty());
+        assert_eq!(
+            (sa.p.max_radius, sa.p.caustic_max_radius, sa.p.emit_photons, sa.p.caustic_photons),
+            (Some(2.0), Some(0.5), Some(5000), 0)
+        );
+        let err = |c: RenderConfig| crate::registry::make_integrator(&c).err().unwrap().to_string();
+        assert!(err(cfg.clone().with("sppm_radius", 1.0)).contains("sppm_radius"));
+        assert!(err(cfg.with("gather", "nope")).contains("nope"));
     }
 }

@@ -15,59 +15,70 @@ pub type OnPass<'a> = &'a mut (dyn FnMut(u32, f64, &Film) + Send);
 /// Passes run when neither `passes` nor `time_limit` is given.
 pub const DEFAULT_PASSES: u32 = 16;
 
-/// Checks the settings every progressive integrator uses.
-pub fn validate(cfg: &RenderConfig) -> Result<()> {
-    if cfg.alpha.is_nan() || cfg.alpha <= 0.0 || cfg.alpha > 1.0 {
-        bail!("alpha must lie in (0, 1], got {}", cfg.alpha);
+crate::params! {
+    /// What the progressive integrators (`sppm`, `ppm`) share.
+    pub struct ProgressiveParams {
+        /// Passes to run; `auto` = 16, or unbounded when `time_limit` is set.
+        passes: Option<u32> = "auto",
+        /// Photon paths emitted per pass; `auto`: `sppm` 131072, `ppm` fills `photons` / `caustic_photons` every pass.
+        photons_per_pass: Option<u64> = "auto",
+        /// Radius-reduction parameter α ∈ (0, 1] (1 = the radius never shrinks).
+        alpha: f32 = "2/3",
+        /// Stop after the pass that crosses this many seconds.
+        time_limit: Option<f64> = "auto",
+        /// Write the image and the state to `checkpoint_file` every this many passes.
+        checkpoint_every: Option<u32> = "auto",
+        /// State file of `checkpoint_every` / `resume` (`render -o OUT` sets OUT.checkpoint.json).
+        checkpoint_file: Option<String> = "auto",
+        /// Continue from `checkpoint_file` (bit-identical to an uninterrupted run).
+        resume: bool = "false",
     }
-    if cfg.passes == Some(0) {
-        bail!("passes must be at least 1");
-    }
-    if let Some(t) = cfg.time_limit
-        && (t.is_nan() || t <= 0.0 || t.is_infinite())
-    {
-        bail!("time_limit must be a positive number of seconds, got {t}");
-    }
-    if cfg.photons_per_pass == Some(0) {
-        bail!("photons_per_pass must be at least 1");
-    }
-    if cfg.record_passes.contains(&0) {
-        bail!("record_passes counts passes from 1; 0 is not a pass");
-    }
-    if cfg.checkpoint_every == Some(0) {
-        bail!("checkpoint_every must be at least 1 pass");
-    }
-    if (cfg.checkpoint_every.is_some() || cfg.resume) && cfg.checkpoint_file.is_none() {
-        bail!("checkpoint_every / resume need a checkpoint_file (give `render` an output, -o OUT: the state goes to OUT.checkpoint.json)");
-    }
-    if cfg.sampler == "hammersley" && cfg.passes.is_none() {
-        bail!("sampler `hammersley` needs the number of passes up front: set passes (--passes N) or use `halton`");
-    }
-    Ok(())
 }
 
-/// Checks that the configuration does not set progressive keys for a fixed-budget
-/// integrator, where they would be silently ignored.
-pub fn reject_for_fixed_budget(cfg: &RenderConfig) -> Result<()> {
-    let d = RenderConfig::default();
-    let set: Vec<&str> = [
-        ("passes", cfg.passes != d.passes),
-        ("photons_per_pass", cfg.photons_per_pass != d.photons_per_pass),
-        ("time_limit", cfg.time_limit != d.time_limit),
-        ("sppm_radius", cfg.sppm_radius != d.sppm_radius),
-        ("sppm_direct", cfg.sppm_direct != d.sppm_direct),
-        ("record_passes", cfg.record_passes != d.record_passes),
-        ("checkpoint_every", cfg.checkpoint_every != d.checkpoint_every),
-        ("resume", cfg.resume != d.resume),
-    ]
-    .iter()
-    .filter(|x| x.1)
-    .map(|x| x.0)
-    .collect();
-    if !set.is_empty() {
-        bail!("{} only apply to the progressive integrators (sppm, ppm), not `{}`", set.join(", "), cfg.integrator);
+/// Keys that say how long or where to run, not what is computed (a checkpoint may be
+/// resumed with other values).
+const RUN_KEYS: &[&str] = &["passes", "time_limit", "checkpoint_every", "checkpoint_file", "resume"];
+
+impl ProgressiveParams {
+    /// Reads the parameters and checks them with the common keys of `cfg`.
+    pub fn read_checked(cfg: &RenderConfig, r: &crate::param::Reader) -> Result<Self> {
+        let p = Self::read(r)?;
+        p.validate(cfg)?;
+        Ok(p)
     }
-    Ok(())
+
+    /// Checks the settings every progressive integrator uses.
+    pub fn validate(&self, cfg: &RenderConfig) -> Result<()> {
+        if self.alpha.is_nan() || self.alpha <= 0.0 || self.alpha > 1.0 {
+            bail!("alpha must lie in (0, 1], got {}", self.alpha);
+        }
+        if self.passes == Some(0) {
+            bail!("passes must be at least 1");
+        }
+        if let Some(t) = self.time_limit
+            && (t.is_nan() || t <= 0.0 || t.is_infinite())
+        {
+            bail!("time_limit must be a positive number of seconds, got {t}");
+        }
+        if self.photons_per_pass == Some(0) {
+            bail!("photons_per_pass must be at least 1");
+        }
+        if cfg.record_passes.contains(&0) {
+            bail!("record_passes counts passes from 1; 0 is not a pass");
+        }
+        if self.checkpoint_every == Some(0) {
+            bail!("checkpoint_every must be at least 1 pass");
+        }
+        if (self.checkpoint_every.is_some() || self.resume) && self.checkpoint_file.is_none() {
+            bail!(
+                "checkpoint_every / resume need a checkpoint_file (give `render` an output, -o OUT: the state goes to OUT.checkpoint.json)"
+            );
+        }
+        if cfg.sampler == "hammersley" && self.passes.is_none() {
+            bail!("sampler `hammersley` needs the number of passes up front: set passes (--passes N) or use `halton`");
+        }
+        Ok(())
+    }
 }
 
 /// A saved progressive state (`checkpoint_file`, JSON; floats stored as their bits so
@@ -87,8 +98,10 @@ const CHECKPOINT_FORMAT: &str = "photonlab-progressive-checkpoint-v1";
 /// how long or where to run, and the scene.
 fn checkpoint_key(cfg: &RenderConfig, world: &crate::world::World) -> Result<String> {
     let mut c = cfg.clone();
-    (c.passes, c.time_limit, c.threads, c.record_passes) = (None, None, 0, Vec::new());
-    (c.checkpoint_every, c.checkpoint_file, c.resume) = (None, None, false);
+    (c.threads, c.record_passes) = (0, Vec::new());
+    for k in RUN_KEYS {
+        c.params.remove(k);
+    }
     let text = toml::to_string(&c)?;
     let words: Vec<u64> = text.bytes().map(u64::from).collect();
     let scene = crate::experiment::scene_fingerprint(&world.scene);
@@ -97,8 +110,12 @@ fn checkpoint_key(cfg: &RenderConfig, world: &crate::world::World) -> Result<Str
 
 /// With `resume`: the pass count and state saved in `checkpoint_file`, after checking
 /// that they were written for this configuration and scene.
-pub fn load_checkpoint<S: DeserializeOwned>(cfg: &RenderConfig, world: &crate::world::World) -> Result<Option<(u32, S)>> {
-    let (true, Some(path)) = (cfg.resume, &cfg.checkpoint_file) else { return Ok(None) };
+pub fn load_checkpoint<S: DeserializeOwned>(
+    cfg: &RenderConfig,
+    prog: &ProgressiveParams,
+    world: &crate::world::World,
+) -> Result<Option<(u32, S)>> {
+    let (true, Some(path)) = (prog.resume, &prog.checkpoint_file) else { return Ok(None) };
     let text = std::fs::read_to_string(path).with_context(|| format!("{path}: cannot read the checkpoint to resume from"))?;
     let c: Checkpoint<S> = serde_json::from_str(&text).with_context(|| format!("{path}: not a readable checkpoint"))?;
     if c.format != CHECKPOINT_FORMAT || c.integrator != cfg.integrator {
@@ -111,8 +128,14 @@ pub fn load_checkpoint<S: DeserializeOwned>(cfg: &RenderConfig, world: &crate::w
 }
 
 /// Writes the state after pass `pass` when `checkpoint_every` divides it.
-pub fn save_checkpoint<S: Serialize>(cfg: &RenderConfig, world: &crate::world::World, pass: u32, state: &S) -> Result<()> {
-    let (Some(every), Some(path)) = (cfg.checkpoint_every, &cfg.checkpoint_file) else { return Ok(()) };
+pub fn save_checkpoint<S: Serialize>(
+    cfg: &RenderConfig,
+    prog: &ProgressiveParams,
+    world: &crate::world::World,
+    pass: u32,
+    state: &S,
+) -> Result<()> {
+    let (Some(every), Some(path)) = (prog.checkpoint_every, &prog.checkpoint_file) else { return Ok(()) };
     if !pass.is_multiple_of(every) {
         return Ok(());
     }
@@ -132,9 +155,9 @@ pub struct Budget {
 
 impl Budget {
     /// Starts the clock.
-    pub fn new(cfg: &RenderConfig) -> Self {
-        let max_passes = cfg.passes.unwrap_or(if cfg.time_limit.is_some() { u32::MAX } else { DEFAULT_PASSES });
-        Budget { max_passes, time_limit: cfg.time_limit, start: Instant::now() }
+    pub fn new(p: &ProgressiveParams) -> Self {
+        let max_passes = p.passes.unwrap_or(if p.time_limit.is_some() { u32::MAX } else { DEFAULT_PASSES });
+        Budget { max_passes, time_limit: p.time_limit, start: Instant::now() }
     }
     /// Seconds since the start.
     pub fn elapsed(&self) -> f64 {
@@ -181,25 +204,26 @@ mod tests {
 
     #[test]
     fn bad_settings_are_named() {
-        let bad = |c: RenderConfig, what: &str| {
-            let e = validate(&c).unwrap_err().to_string();
+        let bad = |c: RenderConfig, p: ProgressiveParams, what: &str| {
+            let e = p.validate(&c).unwrap_err().to_string();
             assert!(e.contains(what), "{e}");
         };
-        bad(RenderConfig { alpha: 0.0, ..Default::default() }, "alpha");
-        bad(RenderConfig { alpha: 1.5, ..Default::default() }, "alpha");
-        bad(RenderConfig { passes: Some(0), ..Default::default() }, "passes");
-        bad(RenderConfig { time_limit: Some(-1.0), ..Default::default() }, "time_limit");
-        bad(RenderConfig { record_passes: vec![0, 4], ..Default::default() }, "record_passes");
-        bad(RenderConfig { sampler: "hammersley".into(), ..Default::default() }, "passes");
-        let e = reject_for_fixed_budget(&RenderConfig { passes: Some(3), ..Default::default() }).unwrap_err();
-        assert!(e.to_string().contains("passes only apply"), "{e}");
+        let (c, p) = (RenderConfig::default(), ProgressiveParams::default());
+        bad(c.clone(), ProgressiveParams { alpha: 0.0, ..p.clone() }, "alpha");
+        bad(c.clone(), ProgressiveParams { alpha: 1.5, ..p.clone() }, "alpha");
+        bad(c.clone(), ProgressiveParams { passes: Some(0), ..p.clone() }, "passes");
+        bad(c.clone(), ProgressiveParams { time_limit: Some(-1.0), ..p.clone() }, "time_limit");
+        bad(RenderConfig { record_passes: vec![0, 4], ..c.clone() }, p.clone(), "record_passes");
+        bad(RenderConfig { sampler: "hammersley".into(), ..c.clone() }, p.clone(), "passes");
+        bad(c.clone(), ProgressiveParams { resume: true, ..p.clone() }, "checkpoint_file");
+        p.validate(&c).unwrap();
     }
 
     #[test]
     fn budget_counts_passes() {
-        let b = Budget::new(&RenderConfig::default());
+        let b = Budget::new(&ProgressiveParams::default());
         assert!(b.more(DEFAULT_PASSES - 1) && !b.more(DEFAULT_PASSES));
-        let b = Budget::new(&RenderConfig { time_limit: Some(1e-9), ..Default::default() });
+        let b = Budget::new(&ProgressiveParams { time_limit: Some(1e-9), ..Default::default() });
         std::thread::sleep(std::time::Duration::from_millis(2));
         assert!(b.more(0) && !b.more(1));
     }

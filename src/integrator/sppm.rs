@@ -27,7 +27,8 @@
 //! points with atomic adds instead, whose order depends on the schedule).
 
 use super::Integrator;
-use super::progressive::{Budget, OnPass, load_checkpoint, save_checkpoint};
+use super::photon::DirectParams;
+use super::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, save_checkpoint};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
@@ -35,7 +36,6 @@ use crate::geometry::Ray;
 use crate::material::{ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
 use crate::photon::{MapKind, RawPhoton, trace_path};
-use crate::registry;
 use crate::render::RenderStats;
 use crate::rr::{RrContext, RussianRoulette, roulette};
 use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
@@ -55,26 +55,47 @@ pub const NORMAL_COS: f32 = 0.7;
 /// Photon paths traced per parallel work item.
 const PHOTON_CHUNK: u64 = 1024;
 
-/// Checks the `sppm` settings.
-pub fn validate(cfg: &RenderConfig) -> Result<()> {
-    super::progressive::validate(cfg)?;
-    if !matches!(cfg.sppm_direct.as_str(), "trace" | "photons") {
-        bail!("unknown sppm_direct `{}` (known: trace, photons)", cfg.sppm_direct);
+crate::params! {
+    /// Parameters of the `sppm` integrator.
+    pub struct SppmParams {
+        /// Initial per-pixel radius (scene units); `auto` = 0.02 × the scene's bounding radius.
+        sppm_radius: Option<f32> = "auto",
+        /// Direct light by `trace` (shadow rays at the visible point) or `photons`.
+        sppm_direct: String = "trace",
     }
-    if cfg.direct_samples == 0 {
-        bail!("direct_samples must be at least 1");
+}
+
+/// Everything `sppm` reads, checked.
+#[derive(Clone, Debug)]
+pub struct SppmSetup {
+    /// Its own parameters.
+    pub p: SppmParams,
+    /// Pass budget and radius schedule.
+    pub prog: ProgressiveParams,
+    /// Direct light.
+    pub direct: DirectParams,
+}
+
+impl SppmSetup {
+    /// Reads and checks the `sppm` settings.
+    pub fn read(cfg: &RenderConfig, r: &crate::param::Reader) -> Result<Self> {
+        let prog = ProgressiveParams::read_checked(cfg, r)?;
+        let p = SppmParams::read(r)?;
+        let direct = DirectParams::read_checked(r)?;
+        if !matches!(p.sppm_direct.as_str(), "trace" | "photons") {
+            bail!("unknown sppm_direct `{}` (known: trace, photons)", p.sppm_direct);
+        }
+        if let Some(r) = p.sppm_radius
+            && (r.is_nan() || r <= 0.0 || r.is_infinite())
+        {
+            bail!("sppm_radius must be positive and finite, got {r}");
+        }
+        let photons = prog.photons_per_pass.unwrap_or(DEFAULT_PHOTONS_PER_PASS);
+        if photons.saturating_mul(prog.passes.unwrap_or(1) as u64) > u32::MAX as u64 * 64 {
+            bail!("photons_per_pass × passes is too large ({photons} × {:?})", prog.passes);
+        }
+        Ok(SppmSetup { p, prog, direct })
     }
-    registry::check_sampler(&cfg.direct_sampler)?;
-    if let Some(r) = cfg.sppm_radius
-        && (r.is_nan() || r <= 0.0 || r.is_infinite())
-    {
-        bail!("sppm_radius must be positive and finite, got {r}");
-    }
-    let photons = cfg.photons_per_pass.unwrap_or(DEFAULT_PHOTONS_PER_PASS);
-    if photons.saturating_mul(cfg.passes.unwrap_or(1) as u64) > u32::MAX as u64 * 64 {
-        bail!("photons_per_pass × passes is too large ({photons} × {:?})", cfg.passes);
-    }
-    Ok(())
 }
 
 /// Where a camera path left its visible point.
@@ -148,6 +169,7 @@ impl PixelStats {
 /// The stochastic progressive photon-mapping integrator.
 pub struct SppmIntegrator {
     cfg: RenderConfig,
+    set: SppmSetup,
     rr: Box<dyn RussianRoulette>,
     quiet: bool,
     counters: BTreeMap<String, f64>,
@@ -155,13 +177,17 @@ pub struct SppmIntegrator {
 
 impl SppmIntegrator {
     /// Builds the integrator (checking its settings).
-    pub fn new(cfg: &RenderConfig, rr: Box<dyn RussianRoulette>, quiet: bool) -> Result<Self> {
-        validate(cfg)?;
-        Ok(SppmIntegrator { cfg: cfg.clone(), rr, quiet, counters: BTreeMap::new() })
+    pub fn new(cfg: &RenderConfig, r: &crate::param::Reader, rr: Box<dyn RussianRoulette>, quiet: bool) -> Result<Self> {
+        Ok(Self::from_setup(cfg, SppmSetup::read(cfg, r)?, rr, quiet))
+    }
+
+    /// Builds the integrator from settings read before.
+    pub fn from_setup(cfg: &RenderConfig, set: SppmSetup, rr: Box<dyn RussianRoulette>, quiet: bool) -> Self {
+        SppmIntegrator { cfg: cfg.clone(), set, rr, quiet, counters: BTreeMap::new() }
     }
 
     fn photons_per_pass(&self) -> u64 {
-        self.cfg.photons_per_pass.unwrap_or(DEFAULT_PHOTONS_PER_PASS)
+        self.set.prog.photons_per_pass.unwrap_or(DEFAULT_PHOTONS_PER_PASS)
     }
 
     /// Traces pixel (x, y)'s camera path of pass `pass`: emitted + direct radiance and
@@ -198,11 +224,11 @@ impl SppmIntegrator {
             let bsdf = &mat.bsdf;
             let dim = bounce_dim(depth);
             if !bsdf.is_delta() {
-                if self.cfg.sppm_direct == "trace" {
+                if self.set.p.sppm_direct == "trace" {
                     let ds = &mut *direct;
                     // `direct_samples` shadow rays, stratified by the direct sampler on a
                     // stream of its own per (pixel, pass).
-                    let n = self.cfg.direct_samples.max(1);
+                    let n = self.set.direct.direct_samples.max(1);
                     let key = hash_words(&[y as u64 * cam.width as u64 + x as u64, pass as u64, 0xD1]);
                     let mut sum = Color::ZERO;
                     for j in 0..n {
@@ -244,16 +270,16 @@ impl SppmIntegrator {
         let cam = &world.scene.camera;
         let (w, h) = (cam.width, cam.height);
         let npix = (w * h) as usize;
-        let budget = Budget::new(&self.cfg);
+        let budget = Budget::new(&self.set.prog);
         let m = self.photons_per_pass();
-        let alpha = self.cfg.alpha as f64;
-        let r0 = self.cfg.sppm_radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius) as f64;
+        let alpha = self.set.prog.alpha as f64;
+        let r0 = self.set.p.sppm_radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius) as f64;
         let counts = (budget.max_passes != u32::MAX).then_some(budget.max_passes as u64);
-        let cam_sampler = registry::make_sampler(&self.cfg.sampler, self.cfg.seed, counts)?;
-        let emit_sampler = registry::make_sampler(&self.cfg.sampler, self.cfg.seed, counts.map(|c| c * m))?;
-        let keep_first = self.cfg.sppm_direct == "photons";
-        let n_direct = self.cfg.direct_samples.max(1) as u64;
-        let direct_sampler = registry::make_sampler(&self.cfg.direct_sampler, self.cfg.seed, Some(n_direct))?;
+        let cam_sampler = crate::sampler::make(&self.cfg.sampler, self.cfg.seed, counts)?;
+        let emit_sampler = crate::sampler::make(&self.cfg.sampler, self.cfg.seed, counts.map(|c| c * m))?;
+        let keep_first = self.set.p.sppm_direct == "photons";
+        let n_direct = self.set.direct.direct_samples.max(1) as u64;
+        let direct_sampler = crate::sampler::make(&self.set.direct.direct_sampler, self.cfg.seed, Some(n_direct))?;
         let mut pixels = vec![PixelStats::new(r0); npix];
         let mut stats = RenderStats::default();
         let (mut t_camera, mut t_photon, mut t_gather) = (0.0, 0.0, 0.0);
@@ -261,7 +287,7 @@ impl SppmIntegrator {
         let mut photon_rays = TraversalStats::default();
         let mut pass = 0u32;
         let mut film = Film::new(w, h);
-        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 8]>>(&self.cfg, world)? {
+        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 8]>>(&self.cfg, &self.set.prog, world)? {
             if saved.len() != npix {
                 bail!("checkpoint holds {} pixels, the image has {npix}", saved.len());
             }
@@ -342,8 +368,8 @@ impl SppmIntegrator {
             pb.inc(1);
             film.pixels.par_iter_mut().zip(pixels.par_iter()).for_each(|(o, px)| *o = px.radiance(pass, m));
             on_pass(pass, budget.elapsed(), &film);
-            if self.cfg.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
-                save_checkpoint(&self.cfg, world, pass, &pixels.iter().map(PixelStats::to_bits).collect::<Vec<_>>())?;
+            if self.set.prog.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
+                save_checkpoint(&self.cfg, &self.set.prog, world, pass, &pixels.iter().map(PixelStats::to_bits).collect::<Vec<_>>())?;
             }
         }
         pb.finish_and_clear();
@@ -482,6 +508,10 @@ impl Integrator for SppmIntegrator {
     /// [`Integrator::render_progressive`].
     fn li(&self, _world: &World, _ray: &Ray, _sampler: &mut dyn Sampler, _stats: &mut TraversalStats) -> Color {
         Color::ZERO
+    }
+
+    fn is_progressive(&self) -> bool {
+        true
     }
 
     fn render_progressive(&mut self, world: &World, on_pass: OnPass) -> Option<Result<(Film, RenderStats)>> {

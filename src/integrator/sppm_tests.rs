@@ -2,6 +2,7 @@ use super::*;
 use crate::camera::Camera;
 use crate::light::LightDesc;
 use crate::material::Material;
+use crate::param::Reader;
 use crate::registry::{make_accel, make_rr};
 use crate::scene::{Face, MeshData, Placement, Scene};
 
@@ -74,15 +75,13 @@ fn thin_floor_seen_from_below() -> World {
 #[test]
 fn photons_on_the_far_side_of_a_thin_wall_do_not_leak() {
     let world = thin_floor_seen_from_below();
-    let cfg = RenderConfig {
-        integrator: "sppm".into(),
-        passes: Some(3),
-        photons_per_pass: Some(20_000),
-        sppm_direct: "photons".into(),
-        sppm_radius: Some(0.2),
-        ..Default::default()
-    };
-    let mut sppm = SppmIntegrator::new(&cfg, make_rr("throughput").unwrap(), true).unwrap();
+    let cfg = RenderConfig { integrator: "sppm".into(), ..Default::default() }
+        .with("passes", 3)
+        .with("photons_per_pass", 20_000)
+        .with("sppm_direct", "photons")
+        .with("sppm_radius", 0.2);
+    let r = Reader::new(&cfg.params);
+    let mut sppm = SppmIntegrator::new(&cfg, &r, make_rr("throughput").unwrap(), true).unwrap();
     let (film, _) = sppm.run(&world, &mut |_, _, _| {}).unwrap();
     // Every pixel sees the unlit underside, within 0.2 of thousands of photons on top.
     assert_eq!(film.mean(), Color::ZERO);
@@ -96,13 +95,12 @@ fn photons_on_the_far_side_of_a_thin_wall_do_not_leak() {
 
 #[test]
 fn bad_settings_are_named() {
-    let cfg = |f: fn(&mut RenderConfig)| {
-        let mut c = RenderConfig { integrator: "sppm".into(), ..Default::default() };
-        f(&mut c);
-        validate(&c).unwrap_err().to_string()
+    let err = |key: &str, v: toml::Value| {
+        let c = RenderConfig { integrator: "sppm".into(), ..Default::default() }.with(key, v);
+        SppmSetup::read(&c, &Reader::new(&c.params)).unwrap_err().to_string()
     };
-    assert!(cfg(|c| c.sppm_direct = "both".into()).contains("sppm_direct"));
-    assert!(cfg(|c| c.sppm_radius = Some(-1.0)).contains("sppm_radius"));
-    assert!(cfg(|c| c.alpha = f32::NAN).contains("alpha"));
-    assert!(cfg(|c| c.photons_per_pass = Some(0)).contains("photons_per_pass"));
+    assert!(err("sppm_direct", "both".into()).contains("sppm_direct"));
+    assert!(err("sppm_radius", (-1.0).into()).contains("sppm_radius"));
+    assert!(err("alpha", f64::NAN.into()).contains("alpha"));
+    assert!(err("photons_per_pass", 0.into()).contains("photons_per_pass"));
 }

@@ -159,6 +159,16 @@ pub fn irradiance(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, 
     sum / (prm.filter_norm * std::f32::consts::PI * r2)
 }
 
+thread_local! {
+    static HEAP: std::cell::RefCell<KnnHeap> = std::cell::RefCell::new(KnnHeap::default());
+}
+
+/// Runs `f` with this thread's reusable k-NN buffer (no allocation per estimate).
+#[inline]
+pub fn with_heap<R>(f: impl FnOnce(&mut KnnHeap) -> R) -> R {
+    HEAP.with(|h| f(&mut h.borrow_mut()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

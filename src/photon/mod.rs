@@ -10,6 +10,7 @@
 
 pub mod emit;
 pub mod estimate;
+pub mod irradiance;
 pub mod kdtree;
 pub mod record;
 

@@ -11,6 +11,11 @@ pub mod off;
 pub mod throughput;
 
 use crate::math::Color;
+use albedo::Albedo;
+use anyhow::{Result, bail};
+use fixed::Fixed;
+use off::Off;
+use throughput::Throughput;
 
 /// What a policy may look at when deciding.
 #[derive(Clone, Copy, Debug)]
@@ -55,6 +60,44 @@ pub fn roulette(policy: &dyn RussianRoulette, ctx: &RrContext, u: f32) -> Option
 #[inline]
 pub(crate) fn clamp01(q: f32) -> f32 {
     if q.is_nan() { 0.0 } else { q.clamp(0.0, 1.0) }
+}
+
+/// Russian-roulette policy names.
+pub const NAMES: &[&str] = &["off", "fixed", "albedo", "throughput"];
+/// Builds a Russian-roulette policy from `NAME[:PARAM]`.
+pub fn make(spec: &str) -> Result<Box<dyn RussianRoulette>> {
+    let s = crate::config::StrategySpec::parse(spec);
+    let param_f = |default: f32| -> Result<f32> {
+        match &s.param {
+            None => Ok(default),
+            Some(p) => p.parse::<f32>().map_err(|_| anyhow::anyhow!("rr `{spec}`: parameter `{p}` is not a number")),
+        }
+    };
+    Ok(match s.name.as_str() {
+        "off" | "fixed" | "albedo" | "throughput" => match s.name.as_str() {
+            "off" => {
+                if s.param.is_some() {
+                    bail!("rr `off` takes no parameter (set the depth with max_depth)");
+                }
+                Box::new(Off)
+            }
+            "fixed" => Box::new(Fixed::new(param_f(Fixed::DEFAULT_Q)?).map_err(anyhow::Error::msg)?),
+            "albedo" => {
+                if s.param.is_some() {
+                    bail!("rr `albedo` takes no parameter");
+                }
+                Box::new(Albedo)
+            }
+            _ => {
+                let d = match &s.param {
+                    None => Throughput::DEFAULT_MIN_DEPTH,
+                    Some(p) => p.parse::<u32>().map_err(|_| anyhow::anyhow!("rr `{spec}`: minimum depth `{p}` is not a whole number"))?,
+                };
+                Box::new(Throughput::new(d))
+            }
+        },
+        _ => bail!("unknown rr policy `{}` (known: {})", s.name, NAMES.join(", ")),
+    })
 }
 
 #[cfg(test)]

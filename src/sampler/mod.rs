@@ -13,6 +13,7 @@ pub mod hammersley;
 pub mod random;
 
 use crate::math::mix64;
+use anyhow::{Result, bail};
 
 /// Dimensions 0–1: position inside the pixel (box filter).
 pub const DIM_PIXEL: u32 = 0;
@@ -149,6 +150,28 @@ pub(crate) fn digit_permutations(seed: u64, dims: usize) -> Vec<Vec<u16>> {
             p
         })
         .collect()
+}
+
+/// Sampler names.
+pub const NAMES: &[&str] = &["random", "halton", "hammersley"];
+
+/// Builds a sampler. `count` is the number of samples per stream when known up
+/// front (required by `hammersley`).
+pub fn make(name: &str, seed: u64, count: Option<u64>) -> Result<Box<dyn Sampler>> {
+    Ok(match name {
+        "random" => Box::new(random::RandomSampler::new(seed)),
+        "halton" => Box::new(halton::HaltonSampler::new(seed)),
+        "hammersley" => match count {
+            Some(n) => Box::new(hammersley::HammersleySampler::new(seed, n).map_err(anyhow::Error::msg)?),
+            None => bail!("sampler `hammersley` needs the sample count up front, which is unknown here; use `halton` or `random`"),
+        },
+        _ => bail!("unknown sampler `{name}` (known: {})", NAMES.join(", ")),
+    })
+}
+
+/// Checks a sampler name without building it.
+pub fn check(name: &str) -> Result<()> {
+    if NAMES.contains(&name) { Ok(()) } else { Err(anyhow::anyhow!("unknown sampler `{name}` (known: {})", NAMES.join(", "))) }
 }
 
 #[cfg(test)]

@@ -18,11 +18,11 @@
 use super::{FamilyReport, Outcome, Settings, TestRow};
 use crate::accel::TraversalStats;
 use crate::camera::Camera;
-use crate::gather::with_heap;
 use crate::integrator::Integrator;
 use crate::integrator::path::PathIntegrator;
 use crate::material::Material;
 use crate::math::{Color, mean};
+use crate::photon::estimate::with_heap;
 use crate::photon::estimate::{self, EstimateParams, Filter};
 use crate::photon::{PhotonPassSettings, build_maps};
 use crate::plot::{LinePlot, Series, log_log_slope};

@@ -94,37 +94,37 @@ fn curve(w: &World, refs: &[Option<f64>], integrator: &mut dyn Integrator, level
 }
 
 fn config(integrator: &str, alpha: f32, passes: u32, seed: u64) -> RenderConfig {
-    RenderConfig {
-        integrator: integrator.into(),
-        sampler: "random".into(),
-        seed,
-        passes: Some(passes),
-        photons_per_pass: Some(PHOTONS),
-        alpha,
-        max_depth: Some(4),
-        // sppm: photons carry the direct light; ppm: radius-limited box estimates.
-        sppm_direct: if integrator == "sppm" { "photons".into() } else { "trace".into() },
-        sppm_radius: (integrator == "sppm").then_some(RADIUS),
-        max_radius: Some(RADIUS),
-        k: 1_000_000,
-        filter: "box".into(),
-        gather: "direct".into(),
-        disc: 1.0,
-        spp: 1,
-        caustic_photons: 0,
-        ..Default::default()
+    let c =
+        RenderConfig { integrator: integrator.into(), sampler: "random".into(), seed, max_depth: Some(4), spp: 1, ..Default::default() }
+            .with("passes", passes)
+            .with("photons_per_pass", PHOTONS as i64)
+            .with("alpha", alpha);
+    if integrator == "sppm" {
+        // Photons carry the direct light.
+        c.with("sppm_direct", "photons").with("sppm_radius", RADIUS)
+    } else {
+        // Radius-limited box estimates.
+        c.with("max_radius", RADIUS)
+            .with("k", 1_000_000)
+            .with("filter", "box")
+            .with("gather", "direct")
+            .with("disc", 1.0)
+            .with("caustic_photons", 0)
     }
 }
 
 fn run_one(w: &World, refs: &[Option<f64>], cfg: &RenderConfig, levels: &[u32]) -> Result<Vec<(f64, f64)>> {
     let rr = make_rr(&cfg.rr)?;
-    if cfg.integrator == "sppm" {
-        curve(w, refs, &mut SppmIntegrator::new(cfg, rr, true)?, levels)
+    let r = crate::param::Reader::new(&cfg.params);
+    let out = if cfg.integrator == "sppm" {
+        curve(w, refs, &mut SppmIntegrator::new(cfg, &r, rr, true)?, levels)
     } else {
-        let mut ppm = PpmIntegrator::new(cfg, true)?;
+        let mut ppm = PpmIntegrator::new(cfg, &r, true)?;
         ppm.output = Output::PhotonsDirect;
         curve(w, refs, &mut ppm, levels)
-    }
+    };
+    r.finish(|k| Some(format!("another plug-in (`{k}`)")))?;
+    out
 }
 
 /// Runs the family.

@@ -1,49 +1,27 @@
-//! Pass 2 of photon mapping and its indirect-light plug-ins (chosen by name:
-//! `direct`, `final_gather`, `precomputed`, `irradiance_cache`).
-//!
-//! [`PhotonContext`] holds the photon maps and the shared shading routines:
-//! distribution-ray-traced direct light, the caustic estimate, the final gather, and
-//! the radiance used at final-gather hits (a full photon estimate, or Christensen's
-//! precomputed irradiance). A [`Gather`] plug-in decides how the indirect light at the
-//! first diffuse surface is computed.
-
-pub mod direct;
-pub mod final_gather;
-pub mod hemisphere;
-pub mod irradiance_cache;
-pub mod precomputed;
+//! The photon integrator's shading in pass 2, shared by every gather plug-in:
+//! distribution-ray-traced direct light, the caustic estimate, Whitted specular
+//! chains, the final gather (diffuse part) and the glossy-lobe gather, and the radiance
+//! at final-gather hits (a full photon estimate, or Christensen's precomputed
+//! irradiance for the diffuse part). [`PhotonContext`] holds the maps and samplers the
+//! integrator's pre-pass built; a [`GatherPoint`] is the point being shaded.
 
 use crate::accel::TraversalStats;
 use crate::geometry::Ray;
 use crate::material::{Bsdf, TransportMode};
 use crate::math::{Color, Frame, cosine_hemisphere, hash_words, u32_to_unit};
 use crate::photon::PhotonMaps;
-use crate::photon::estimate::{self, EstimateParams, facing_normal, facing_shading_normal};
-use crate::photon::kdtree::{KdTree, KnnHeap};
+use crate::photon::estimate::{self, EstimateParams, facing_normal, facing_shading_normal, with_heap};
+use crate::photon::irradiance::{self, IrradiancePoint};
+use crate::photon::kdtree::KdTree;
 use crate::photon::record::Photon;
 use crate::sampler::Sampler;
 use crate::world::{Interaction, World};
 use glam::Vec3;
-use precomputed::IrradiancePoint;
-use std::cell::RefCell;
-
-/// Plug-in names.
-pub const GATHERS: &[&str] = &["direct", "final_gather", "precomputed", "irradiance_cache"];
 
 /// Specular bounces followed before giving up (Whitted chains).
 pub const MAX_SPECULAR: u32 = 12;
 /// Specular depth up to which both glass branches are followed (deeper: one, by weight).
 pub const SPLIT_DEPTH: u32 = 2;
-
-thread_local! {
-    static HEAP: RefCell<KnnHeap> = RefCell::new(KnnHeap::default());
-}
-
-/// Runs `f` with this thread's reusable k-NN buffer (no allocation per estimate).
-#[inline]
-pub fn with_heap<R>(f: impl FnOnce(&mut KnnHeap) -> R) -> R {
-    HEAP.with(|h| f(&mut h.borrow_mut()))
-}
 
 /// Identifies one shading point for its private random numbers (pixel stream,
 /// sample index, path branch): gather and light samples are a pure function of it.
@@ -92,6 +70,22 @@ pub struct SpecularPath {
     pub length: f32,
 }
 
+/// A point shaded in pass 2 (camera hit or gather hit): the surface, the direction
+/// towards the viewer, its BSDF and the key of its private random numbers.
+#[derive(Clone, Copy)]
+pub struct GatherPoint<'a> {
+    /// The scene.
+    pub world: &'a World,
+    /// The surface point.
+    pub it: &'a Interaction,
+    /// Unit direction towards the viewer (previous vertex).
+    pub wo: Vec3,
+    /// The surface's BSDF.
+    pub bsdf: &'a Bsdf,
+    /// Key of the point's random numbers.
+    pub key: ShadeKey,
+}
+
 /// Photon maps plus everything the render pass shares between gather plug-ins.
 pub struct PhotonContext {
     /// The maps from pass 1.
@@ -120,41 +114,13 @@ pub struct PhotonContext {
     pub direct_samples: u32,
 }
 
-/// An indirect-light strategy.
-pub trait Gather: Send + Sync {
-    /// Configuration name.
-    fn name(&self) -> &'static str;
-    /// Work after the photon pass and before rendering (e.g. cache prefill).
-    fn prepare(&mut self, _ctx: &PhotonContext, _world: &World, _quiet: bool) -> anyhow::Result<()> {
-        Ok(())
-    }
-    /// Indirect radiance reflected towards `wo` at the first diffuse surface `it`.
-    #[allow(clippy::too_many_arguments)]
-    fn indirect(
-        &self,
-        ctx: &PhotonContext,
-        world: &World,
-        it: &Interaction,
-        wo: Vec3,
-        bsdf: &Bsdf,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> Color;
-    /// Counters for reports (e.g. cache hits).
-    fn counters(&self) -> Vec<(String, f64)> {
-        Vec::new()
-    }
-    /// Points worth showing in a debug image (e.g. cache entries).
-    fn debug_points(&self) -> Vec<Vec3> {
-        Vec::new()
-    }
-}
-
 impl PhotonContext {
     /// Direct light at a non-specular point by distribution ray tracing:
     /// `direct_samples` shadow rays, lights chosen in proportion to power, the samples
     /// stratified by the direct sampler (its first dimension picks the light).
-    pub fn direct_light(&self, world: &World, it: &Interaction, wo: Vec3, bsdf: &Bsdf, key: ShadeKey, stats: &mut TraversalStats) -> Color {
+    pub fn direct_light(&self, at: &GatherPoint, stats: &mut TraversalStats) -> Color {
+        let GatherPoint { world, it, wo, bsdf, key } = *at;
+        let key = key.child(0xD1);
         let n = self.direct_samples.max(1);
         let mut s = self.direct_sampler.clone_box();
         let mut sum = Color::ZERO;
@@ -195,7 +161,7 @@ impl PhotonContext {
         if let Some(pre) = &self.precomputed {
             let n = facing_normal(it, wo);
             let thickness = self.est_global.disc * self.precomputed_radius;
-            if let Some(e) = precomputed::lookup(pre, it.p, n, self.precomputed_radius, thickness) {
+            if let Some(e) = irradiance::lookup(pre, it.p, n, self.precomputed_radius, thickness) {
                 let mut l = bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e;
                 if bsdf.has_glossy() {
                     l += with_heap(|h| {
@@ -253,7 +219,7 @@ impl PhotonContext {
         let Some(sp) = self.follow_specular_path(world, ray, key, stats) else { return (Color::ZERO, f32::INFINITY) };
         let hb = &world.material(&sp.it).bsdf;
         let l = if level + 1 < self.gather_counts.len() {
-            self.shade(world, &sp.it, sp.wo, hb, level + 1, key, stats, false)
+            self.shade(&GatherPoint { world, it: &sp.it, wo: sp.wo, bsdf: hb, key }, level + 1, stats, false)
         } else {
             self.exitant_at_hit(&sp.it, sp.wo, hb)
         };
@@ -264,15 +230,8 @@ impl PhotonContext {
     /// level): directions cosine-distributed about the shading normal on the viewer's
     /// side (as `path` samples a Lambertian surface); directions below the geometric
     /// surface carry no light.
-    pub fn final_gather(
-        &self,
-        world: &World,
-        it: &Interaction,
-        wo: Vec3,
-        level: usize,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> GatherResult {
+    pub fn final_gather(&self, at: &GatherPoint, level: usize, stats: &mut TraversalStats) -> GatherResult {
+        let GatherPoint { world, it, wo, key, .. } = *at;
         let n = self.gather_counts[level].max(1);
         let mut s = self.gather_samplers[level].clone_box();
         let frame = Frame::new(facing_shading_normal(it, wo));
@@ -295,17 +254,8 @@ impl PhotonContext {
     /// Glossy part of the reflected indirect radiance: `glossy_samples` rays drawn
     /// from the glossy lobe alone, each shaded as a final-gather ray. Zero for
     /// surfaces without a glossy lobe.
-    #[allow(clippy::too_many_arguments)]
-    pub fn glossy_gather(
-        &self,
-        world: &World,
-        it: &Interaction,
-        wo: Vec3,
-        bsdf: &Bsdf,
-        level: usize,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> Color {
+    pub fn glossy_gather(&self, at: &GatherPoint, level: usize, stats: &mut TraversalStats) -> Color {
+        let GatherPoint { world, it, wo, bsdf, key } = *at;
         if !bsdf.has_glossy() {
             return Color::ZERO;
         }
@@ -324,42 +274,21 @@ impl PhotonContext {
 
     /// Indirect radiance towards `wo` by final gathering: Kd/π times the gathered
     /// irradiance, plus the glossy lobe's own gather.
-    #[allow(clippy::too_many_arguments)]
-    pub fn gathered_indirect(
-        &self,
-        world: &World,
-        it: &Interaction,
-        wo: Vec3,
-        bsdf: &Bsdf,
-        level: usize,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> Color {
-        let kd = bsdf.diffuse_albedo();
+    pub fn gathered_indirect(&self, at: &GatherPoint, level: usize, stats: &mut TraversalStats) -> Color {
+        let kd = at.bsdf.diffuse_albedo();
         let mut l = Color::ZERO;
         if kd.max_element() > 0.0 {
-            l += kd * std::f32::consts::FRAC_1_PI * self.final_gather(world, it, wo, level, key, stats).irradiance;
+            l += kd * std::f32::consts::FRAC_1_PI * self.final_gather(at, level, stats).irradiance;
         }
-        l + self.glossy_gather(world, it, wo, bsdf, level, key, stats)
+        l + self.glossy_gather(at, level, stats)
     }
 
     /// Full shading of a non-specular point at gather `level`: direct light, caustics
     /// and the indirect light of the next level (or `gather` at the first level).
-    #[allow(clippy::too_many_arguments)]
-    pub fn shade(
-        &self,
-        world: &World,
-        it: &Interaction,
-        wo: Vec3,
-        bsdf: &Bsdf,
-        level: usize,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-        with_direct: bool,
-    ) -> Color {
-        let mut l = self.caustic(it, wo, bsdf) + self.gathered_indirect(world, it, wo, bsdf, level, key, stats);
+    pub fn shade(&self, at: &GatherPoint, level: usize, stats: &mut TraversalStats, with_direct: bool) -> Color {
+        let mut l = self.caustic(at.it, at.wo, at.bsdf) + self.gathered_indirect(at, level, stats);
         if with_direct || level > 0 {
-            l += self.direct_light(world, it, wo, bsdf, key.child(0xD1), stats);
+            l += self.direct_light(at, stats);
         }
         l
     }

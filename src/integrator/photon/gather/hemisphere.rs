@@ -10,11 +10,10 @@
 //! Illumination with Irradiance Caching", 2009, eq. 5.5/5.6 for cosine-weighted
 //! strata).
 
-use super::{PhotonContext, ShadeKey};
 use crate::accel::TraversalStats;
+use crate::integrator::photon::context::{GatherPoint, PhotonContext};
 use crate::math::{Color, Frame};
 use crate::photon::estimate::facing_shading_normal;
-use crate::world::{Interaction, World};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -41,15 +40,8 @@ pub fn strata(n: u32) -> (u32, u32) {
 }
 
 /// Gathers at `it` with about `n` stratified rays and computes the gradients.
-pub fn gather(
-    ctx: &PhotonContext,
-    world: &World,
-    it: &Interaction,
-    wo: Vec3,
-    n: u32,
-    key: ShadeKey,
-    stats: &mut TraversalStats,
-) -> HemisphereResult {
+pub fn gather(ctx: &PhotonContext, at: &GatherPoint, n: u32, stats: &mut TraversalStats) -> HemisphereResult {
+    let GatherPoint { world, it, wo, key, .. } = *at;
     let (m, nk) = strata(n);
     let nrm = facing_shading_normal(it, wo);
     let frame = Frame::new(nrm);

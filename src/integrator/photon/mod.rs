@@ -8,29 +8,25 @@
 //! tracing + caustics by direct visualisation of the caustic map + indirect light by
 //! the configured gather plug-in.
 
+pub mod context;
+pub mod gather;
+
 use super::Integrator;
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
-use crate::gather::{
-    Gather, MAX_SPECULAR, PhotonContext, SPLIT_DEPTH, ShadeKey,
-    direct::DirectVisualisation,
-    final_gather::FinalGather,
-    irradiance_cache::{CacheSettings, IrradianceCache},
-    pick_branch, precomputed,
-    precomputed::PrecomputedGather,
-    with_heap,
-};
 use crate::geometry::Ray;
 use crate::material::TransportMode;
 use crate::math::Color;
-use crate::photon::estimate::{self, EstimateParams, Filter};
+use crate::photon::estimate::{self, EstimateParams, Filter, with_heap};
+use crate::photon::irradiance;
 use crate::photon::kdtree::KdTree;
 use crate::photon::{self, PhotonPassSettings, build_maps};
-use crate::registry;
 use crate::rr::RussianRoulette;
 use crate::sampler::Sampler;
 use crate::world::World;
 use anyhow::{Result, bail};
+use context::{GatherPoint, MAX_SPECULAR, PhotonContext, SPLIT_DEPTH, ShadeKey, pick_branch};
+use gather::{Gather, GatherSpec};
 use glam::Vec3;
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -78,9 +74,104 @@ impl Output {
     }
 }
 
+crate::params! {
+    /// Parameters of the `photon` integrator (also read by `ppm`, once per pass).
+    pub struct PhotonParams {
+        /// Photons stored in the direct + indirect (global) maps.
+        photons: u32 = "200000",
+        /// Photons stored in the caustic map (skipped with a warning when the scene has no mirror or glass).
+        caustic_photons: u32 = "50000",
+        /// Emit exactly this many photon paths (required by the `hammersley` sampler) instead of emitting until the maps hold the requested counts.
+        emit_photons: Option<u64> = "auto",
+        /// Cap on emitted photon paths; a map that cannot be filled is reported.
+        max_emitted: u64 = "20000000",
+        /// Indirect-light plug-in (`gather` family below).
+        gather: String = "irradiance_cache",
+        /// Photons per global radiance estimate.
+        k: u32 = "100",
+        /// Photons per caustic radiance estimate.
+        caustic_k: u32 = "60",
+        /// Largest search radius of global estimates (scene units); `auto` = 3 × the radius holding `k` photons at the mean density of the stored photons over the triangles they landed on.
+        max_radius: Option<f32> = "auto",
+        /// Largest search radius of caustic estimates; `auto` = 3 × the radius holding `caustic_k` caustic photons at their mean density.
+        caustic_max_radius: Option<f32> = "auto",
+        /// Density-estimation kernel (`filter` family below), normalised.
+        filter: String = "cone",
+        /// Photons (and precomputed points) must lie within ±disc × radius of the tangent plane and have arrived on the side the estimate looks from (corners, thin walls); ≥ 1 disables the plane test.
+        disc: f32 = "0.25",
+    }
+}
+
+crate::params! {
+    /// Direct light by distribution ray tracing (read by `photon`, `ppm` and `sppm`).
+    pub struct DirectParams {
+        /// Shadow rays per shading point.
+        direct_samples: u32 = "4",
+        /// Sampler of the direct-light samples at each shading point.
+        direct_sampler: String = "hammersley",
+    }
+}
+
+impl DirectParams {
+    /// Reads and checks the parameters.
+    pub fn read_checked(r: &crate::param::Reader) -> Result<Self> {
+        let d = Self::read(r)?;
+        if d.direct_samples == 0 {
+            bail!("direct_samples must be at least 1");
+        }
+        crate::sampler::check(&d.direct_sampler)?;
+        Ok(d)
+    }
+}
+
+/// Everything the photon integrator reads, checked.
+#[derive(Clone, Debug)]
+pub struct PhotonSetup {
+    /// Its own parameters.
+    pub p: PhotonParams,
+    /// Direct light.
+    pub direct: DirectParams,
+    /// The gather plug-in and its parameters.
+    pub gather: GatherSpec,
+}
+
+impl PhotonSetup {
+    /// Reads and checks the photon integrator's parameters (`cfg` gives the sampler).
+    pub fn read(cfg: &RenderConfig, r: &crate::param::Reader) -> Result<Self> {
+        let p = PhotonParams::read(r)?;
+        let direct = DirectParams::read_checked(r)?;
+        let gather = GatherSpec::read(&p.gather, r)?;
+        Filter::parse(&p.filter).map_err(anyhow::Error::msg)?;
+        if cfg.sampler == "hammersley" && p.emit_photons.is_none() {
+            bail!("sampler `hammersley` needs the number of emitted photons up front: set emit_photons (--emit-photons N) or use `halton`");
+        }
+        if p.photons == 0 && p.caustic_photons == 0 && p.emit_photons.is_none() {
+            bail!("photons and caustic_photons are both 0: nothing to store");
+        }
+        if p.k == 0 || p.caustic_k == 0 {
+            bail!("k and caustic_k must be at least 1");
+        }
+        if p.disc.is_nan() || p.disc <= 0.0 {
+            bail!("disc must be positive, got {}", p.disc);
+        }
+        for (name, v) in [("max_radius", p.max_radius), ("caustic_max_radius", p.caustic_max_radius)] {
+            if let Some(r) = v
+                && (r.is_nan() || r <= 0.0 || r.is_infinite())
+            {
+                bail!("{name} must be positive and finite, got {r}");
+            }
+        }
+        if p.emit_photons == Some(0) || p.max_emitted == 0 {
+            bail!("emit_photons and max_emitted must be at least 1");
+        }
+        Ok(PhotonSetup { p, direct, gather })
+    }
+}
+
 /// The photon-mapping integrator.
 pub struct PhotonIntegrator {
     cfg: RenderConfig,
+    setup: PhotonSetup,
     rr: Box<dyn RussianRoulette>,
     gather: Box<dyn Gather>,
     ctx: Option<PhotonContext>,
@@ -90,76 +181,24 @@ pub struct PhotonIntegrator {
     times: BTreeMap<String, f64>,
 }
 
-/// Checks the photon settings of a configuration.
-pub fn validate(cfg: &RenderConfig) -> Result<()> {
-    make_gather(cfg)?;
-    Filter::parse(&cfg.filter).map_err(anyhow::Error::msg)?;
-    registry::check_sampler(&cfg.direct_sampler)?;
-    if cfg.sampler == "hammersley" && cfg.emit_photons.is_none() {
-        bail!("sampler `hammersley` needs the number of emitted photons up front: set emit_photons (--emit-photons N) or use `halton`");
-    }
-    if cfg.photons == 0 && cfg.caustic_photons == 0 && cfg.emit_photons.is_none() {
-        bail!("photons and caustic_photons are both 0: nothing to store");
-    }
-    if cfg.gather_bounces == 0 || cfg.gather_samples == 0 || cfg.glossy_samples == 0 || cfg.ic_samples == 0 {
-        bail!("gather_bounces, gather_samples, glossy_samples and ic_samples must be at least 1");
-    }
-    let bad_px = |v: f32| v.is_nan() || v < 0.0 || v.is_infinite();
-    if bad_px(cfg.ic_min_pixels) || bad_px(cfg.ic_max_pixels) || cfg.ic_max_pixels < cfg.ic_min_pixels {
-        bail!("irradiance cache: need 0 <= ic_min_pixels <= ic_max_pixels (finite), got {} and {}", cfg.ic_min_pixels, cfg.ic_max_pixels);
-    }
-    if cfg.k == 0 || cfg.caustic_k == 0 {
-        bail!("k and caustic_k must be at least 1");
-    }
-    if cfg.direct_samples == 0 {
-        bail!("direct_samples must be at least 1");
-    }
-    if cfg.precompute_stride == 0 {
-        bail!("precompute_stride must be at least 1");
-    }
-    if cfg.disc.is_nan() || cfg.disc <= 0.0 {
-        bail!("disc must be positive, got {}", cfg.disc);
-    }
-    for (name, v) in [("max_radius", cfg.max_radius), ("caustic_max_radius", cfg.caustic_max_radius)] {
-        if let Some(r) = v
-            && (r.is_nan() || r <= 0.0 || r.is_infinite())
-        {
-            bail!("{name} must be positive and finite, got {r}");
-        }
-    }
-    let bad = |v: f32| v.is_nan() || v <= 0.0;
-    if bad(cfg.ic_tolerance) || bad(cfg.ic_min_radius) || bad(cfg.ic_max_radius) || cfg.ic_max_radius < cfg.ic_min_radius {
-        bail!("irradiance cache: need ic_tolerance > 0 and 0 < ic_min_radius <= ic_max_radius");
-    }
-    if cfg.emit_photons == Some(0) || cfg.max_emitted == 0 {
-        bail!("emit_photons and max_emitted must be at least 1");
-    }
-    Ok(())
-}
-
-fn make_gather(cfg: &RenderConfig) -> Result<Box<dyn Gather>> {
-    Ok(match cfg.gather.as_str() {
-        "direct" => Box::new(DirectVisualisation),
-        "final_gather" => Box::new(FinalGather),
-        "precomputed" => Box::new(PrecomputedGather),
-        "irradiance_cache" => Box::new(IrradianceCache::new(CacheSettings::from_config(cfg))),
-        other => bail!("unknown gather `{other}` (known: {})", crate::gather::GATHERS.join(", ")),
-    })
-}
-
 impl PhotonIntegrator {
-    /// Builds the integrator (the photon pass runs in `preprocess`).
-    pub fn new(cfg: &RenderConfig, rr: Box<dyn RussianRoulette>, quiet: bool) -> Result<Self> {
-        validate(cfg)?;
-        Ok(PhotonIntegrator {
+    /// Builds the integrator from its parameters (the photon pass runs in `preprocess`).
+    pub fn new(cfg: &RenderConfig, r: &crate::param::Reader, rr: Box<dyn RussianRoulette>, quiet: bool) -> Result<Self> {
+        Ok(Self::from_setup(cfg, PhotonSetup::read(cfg, r)?, rr, quiet))
+    }
+
+    /// Builds the integrator from parameters read before.
+    pub fn from_setup(cfg: &RenderConfig, setup: PhotonSetup, rr: Box<dyn RussianRoulette>, quiet: bool) -> Self {
+        PhotonIntegrator {
             cfg: cfg.clone(),
+            gather: setup.gather.build(),
+            setup,
             rr,
-            gather: make_gather(cfg)?,
             ctx: None,
             output: Output::All,
             quiet,
             times: BTreeMap::new(),
-        })
+        }
     }
 
     /// The photon maps and shared state (after `preprocess`).
@@ -193,15 +232,16 @@ impl PhotonIntegrator {
             return l;
         }
         let est = |map| with_heap(|h| estimate::radiance(map, &it, wo, bsdf, &ctx.est_global, h));
+        let at = GatherPoint { world, it: &it, wo, bsdf, key };
         match self.output {
             Output::All => {
-                l += ctx.direct_light(world, &it, wo, bsdf, key.child(0xD1), stats);
+                l += ctx.direct_light(&at, stats);
                 l += ctx.caustic(&it, wo, bsdf);
-                l += self.gather.indirect(ctx, world, &it, wo, bsdf, key, stats);
+                l += self.gather.indirect(ctx, &at, stats);
             }
-            Output::Direct => l += ctx.direct_light(world, &it, wo, bsdf, key.child(0xD1), stats),
+            Output::Direct => l += ctx.direct_light(&at, stats),
             Output::Caustic => l += ctx.caustic(&it, wo, bsdf),
-            Output::Indirect => l += self.gather.indirect(ctx, world, &it, wo, bsdf, key, stats),
+            Output::Indirect => l += self.gather.indirect(ctx, &at, stats),
             Output::PhotonsDirect => l += est(&ctx.maps.direct),
             Output::PhotonsIndirect => l += est(&ctx.maps.indirect),
             Output::PhotonsCaustic => l += with_heap(|h| estimate::radiance(&ctx.maps.caustic, &it, wo, bsdf, &ctx.est_caustic, h)),
@@ -217,15 +257,17 @@ impl Integrator for PhotonIntegrator {
 
     fn preprocess(&mut self, world: &World) -> Result<()> {
         let cfg = &self.cfg;
+        let (p, direct) = (&self.setup.p, &self.setup.direct);
+        let gp = self.setup.gather.gather_params();
         let r_scene = world.lights.scene_radius;
-        let filter = Filter::parse(&cfg.filter).map_err(anyhow::Error::msg)?;
-        let emit_sampler = registry::make_sampler(&cfg.sampler, cfg.seed, cfg.emit_photons)?;
+        let filter = Filter::parse(&p.filter).map_err(anyhow::Error::msg)?;
+        let emit_sampler = crate::sampler::make(&cfg.sampler, cfg.seed, p.emit_photons)?;
         let t0 = Instant::now();
         let settings = PhotonPassSettings {
-            global_photons: cfg.photons as usize,
-            caustic_photons: cfg.caustic_photons as usize,
-            fixed_emit: cfg.emit_photons,
-            max_emitted: cfg.max_emitted,
+            global_photons: p.photons as usize,
+            caustic_photons: p.caustic_photons as usize,
+            fixed_emit: p.emit_photons,
+            max_emitted: p.max_emitted,
             max_depth: cfg.depth_limit(),
         };
         let maps = build_maps(world, emit_sampler.as_ref(), self.rr.as_ref(), &settings, self.quiet);
@@ -241,32 +283,30 @@ impl Integrator for PhotonIntegrator {
         let from_density = |k: u32, stored: usize, area: f64, fallback: f32| {
             photon::mean_density_radius(k as usize, stored, area).map_or(fallback, |r| (DENSITY_RADII * r).min(r_scene))
         };
-        let max_radius = cfg.max_radius.unwrap_or_else(|| from_density(cfg.k, maps.global_len(), maps.lit_area_global, 0.1 * r_scene));
-        let caustic_radius = cfg
-            .caustic_max_radius
-            .unwrap_or_else(|| from_density(cfg.caustic_k, maps.caustic.len(), maps.lit_area_caustic, 0.025 * r_scene));
+        let max_radius = p.max_radius.unwrap_or_else(|| from_density(p.k, maps.global_len(), maps.lit_area_global, 0.1 * r_scene));
+        let caustic_radius =
+            p.caustic_max_radius.unwrap_or_else(|| from_density(p.caustic_k, maps.caustic.len(), maps.lit_area_caustic, 0.025 * r_scene));
         self.times.insert("max_radius".into(), max_radius as f64);
         self.times.insert("caustic_max_radius".into(), caustic_radius as f64);
         let t1 = Instant::now();
         let t_global = Instant::now();
         let global = KdTree::merged(&[&maps.direct, &maps.indirect, &maps.caustic]);
         self.times.insert("kdtree_build_s".into(), maps.build_s + t_global.elapsed().as_secs_f64());
-        let est_global = EstimateParams::new(cfg.k as usize, max_radius, filter, cfg.disc);
-        let est_caustic = EstimateParams::new(cfg.caustic_k as usize, caustic_radius, filter, cfg.disc);
-        let use_pre = cfg.gather == "precomputed" || (cfg.precomputed_irradiance && cfg.gather == "irradiance_cache");
-        let pre = use_pre.then(|| precomputed::precompute(&global, cfg.precompute_stride as usize, &est_global));
+        let est_global = EstimateParams::new(p.k as usize, max_radius, filter, p.disc);
+        let est_caustic = EstimateParams::new(p.caustic_k as usize, caustic_radius, filter, p.disc);
+        let pre = self.setup.gather.precompute_stride().map(|stride| irradiance::precompute(&global, stride, &est_global));
         self.times.insert("precompute_s".into(), t1.elapsed().as_secs_f64());
-        let mut counts = vec![cfg.gather_samples];
-        for _ in 1..cfg.gather_bounces {
+        let mut counts = vec![gp.gather_samples];
+        for _ in 1..gp.gather_bounces {
             let last = *counts.last().unwrap_or(&1);
             counts.push((last / 8).max(4));
         }
         let gather_samplers = counts
             .iter()
             .enumerate()
-            .map(|(i, &n)| registry::make_sampler(&cfg.sampler, cfg.seed ^ (0x6A7E + i as u64), Some(n as u64)))
+            .map(|(i, &n)| crate::sampler::make(&cfg.sampler, cfg.seed ^ (0x6A7E + i as u64), Some(n as u64)))
             .collect::<Result<Vec<_>>>()?;
-        let direct_sampler = registry::make_sampler(&cfg.direct_sampler, cfg.seed ^ 0xD12EC7, Some(cfg.direct_samples as u64))?;
+        let direct_sampler = crate::sampler::make(&direct.direct_sampler, cfg.seed ^ 0xD12EC7, Some(direct.direct_samples as u64))?;
         let ctx = PhotonContext {
             maps,
             global,
@@ -276,10 +316,10 @@ impl Integrator for PhotonIntegrator {
             precomputed_radius: max_radius,
             gather_samplers,
             gather_counts: counts,
-            glossy_sampler: registry::make_sampler(&cfg.sampler, cfg.seed ^ 0x6105_5EED, Some(cfg.glossy_samples as u64))?,
-            glossy_samples: cfg.glossy_samples,
+            glossy_sampler: crate::sampler::make(&cfg.sampler, cfg.seed ^ 0x6105_5EED, Some(gp.glossy_samples as u64))?,
+            glossy_samples: gp.glossy_samples,
             direct_sampler,
-            direct_samples: cfg.direct_samples,
+            direct_samples: direct.direct_samples,
         };
         let t2 = Instant::now();
         self.gather.prepare(&ctx, world, self.quiet)?;

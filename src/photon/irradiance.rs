@@ -1,16 +1,12 @@
-//! `precomputed`: final gathering whose hits look up Christensen's precomputed
-//! irradiance (2000) instead of a full photon estimate. Irradiance is estimated at
-//! every n-th global photon before rendering and kept in its own kd-tree; a lookup
-//! takes the nearest point whose normal agrees.
+//! Christensen's (2000) precomputed irradiance: irradiance estimated at every n-th
+//! stored photon before rendering, kept in its own kd-tree, and looked up at
+//! final-gather hits (the `precomputed` gather, and `irradiance_cache` with
+//! `precomputed_irradiance`).
 
-use super::{Gather, PhotonContext, ShadeKey, with_heap};
-use crate::accel::TraversalStats;
-use crate::material::Bsdf;
+use super::estimate::{self, EstimateParams, with_heap};
+use super::kdtree::{KdPoint, KdTree};
+use super::record::Photon;
 use crate::math::Color;
-use crate::photon::estimate::{self, EstimateParams};
-use crate::photon::kdtree::{KdPoint, KdTree};
-use crate::photon::record::Photon;
-use crate::world::{Interaction, World};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -52,30 +48,8 @@ pub fn precompute(global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) 
 /// surface a little above or below (the other side of a thin slab, a lamp over a
 /// roof) lends its irradiance through the wall.
 pub fn lookup(tree: &KdTree<IrradiancePoint>, p: Vec3, n: Vec3, radius: f32, thickness: f32) -> Option<Color> {
-    super::with_heap(|h| {
+    with_heap(|h| {
         tree.knn(p, 1, radius * radius, h, &|q: &IrradiancePoint, pos: Vec3| q.normal.dot(n) >= 0.7 && (pos - p).dot(n).abs() <= thickness);
         h.items.first().map(|&(_, i)| tree.points[i as usize].irradiance)
     })
-}
-
-/// Final gather over precomputed irradiance.
-pub struct PrecomputedGather;
-
-impl Gather for PrecomputedGather {
-    fn name(&self) -> &'static str {
-        "precomputed"
-    }
-    #[allow(clippy::too_many_arguments)]
-    fn indirect(
-        &self,
-        ctx: &PhotonContext,
-        world: &World,
-        it: &Interaction,
-        wo: Vec3,
-        bsdf: &Bsdf,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> Color {
-        ctx.gathered_indirect(world, it, wo, bsdf, 0, key, stats)
-    }
 }

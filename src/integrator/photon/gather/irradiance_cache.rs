@@ -27,14 +27,14 @@
 //! final gather for that point alone and does not insert it, so images are
 //! bit-identical for any thread count.
 
-use super::{Gather, PhotonContext, ShadeKey, hemisphere};
+use super::{Gather, hemisphere};
 use crate::accel::TraversalStats;
-use crate::config::RenderConfig;
+use crate::integrator::photon::context::{GatherPoint, PhotonContext, ShadeKey};
 use crate::material::Bsdf;
 use crate::math::{Color, hash_words, u32_to_unit};
 use crate::photon::estimate::facing_shading_normal;
 use crate::photon::kdtree::{KdPoint, KdTree};
-use crate::world::{Interaction, World};
+use crate::world::World;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -109,40 +109,49 @@ pub fn weight(e: &CacheEntry, p: Vec3, n: Vec3, tolerance: f32) -> f32 {
     if w > 1.0 / tolerance { w } else { 0.0 }
 }
 
-/// Settings of the cache (from the `ic_*` keys).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CacheSettings {
-    /// Tolerance a.
-    pub tolerance: f32,
-    /// Radius clamp, fractions of the scene's bounding radius.
-    pub min_frac: f32,
-    /// Radius clamp, fractions of the scene's bounding radius.
-    pub max_frac: f32,
-    /// Radius clamp in pixel footprints.
-    pub min_pixels: f32,
-    /// Radius clamp in pixel footprints.
-    pub max_pixels: f32,
-    /// Gradients in interpolation and the E/|∇E| radius limit.
-    pub gradients: bool,
-    /// Neighbour clamping.
-    pub neighbor_clamp: bool,
-    /// Rays per entry.
-    pub rays: u32,
+crate::params! {
+    /// Parameters of the `irradiance_cache` gather.
+    pub struct CacheSettings {
+        /// Error tolerance a (Ward): entries with weight > 1/a are used; smaller values give every entry a smaller reach (less bias, more entries).
+        ic_tolerance: f32 = "0.3",
+        /// Smallest valid radius of an entry, as a fraction of the scene's bounding radius.
+        ic_min_radius: f32 = "0.01",
+        /// Largest valid radius of an entry, as a fraction of the scene's bounding radius.
+        ic_max_radius: f32 = "0.25",
+        /// Smallest valid radius in pixel footprints at the entry (Tabellion & Lamorlette 2004).
+        ic_min_pixels: f32 = "10",
+        /// Largest valid radius in pixel footprints at the entry.
+        ic_max_pixels: f32 = "100",
+        /// Irradiance gradients (Ward & Heckbert 1992) in the interpolation, and the radius limit E/|∇E| (Křivánek et al. 2006).
+        ic_gradients: bool = "true",
+        /// Rays per entry (stratified M × N with N ≈ πM); entries are reused over many pixels, so their noise becomes blotches: more rays than a per-pixel gather.
+        ic_samples: u32 = "256",
+        /// Neighbour clamping of radii (Křivánek et al. 2006): R_i ≤ R_j + |p_i − p_j|.
+        ic_neighbor_clamp: bool = "true",
+        /// Gather over Christensen's precomputed irradiance (`precompute_stride`) instead of full photon estimates at gather hits.
+        precomputed_irradiance: bool = "true",
+    }
 }
 
 impl CacheSettings {
-    /// Reads the `ic_*` keys.
-    pub fn from_config(cfg: &RenderConfig) -> Self {
-        CacheSettings {
-            tolerance: cfg.ic_tolerance,
-            min_frac: cfg.ic_min_radius,
-            max_frac: cfg.ic_max_radius,
-            min_pixels: cfg.ic_min_pixels,
-            max_pixels: cfg.ic_max_pixels,
-            gradients: cfg.ic_gradients,
-            neighbor_clamp: cfg.ic_neighbor_clamp,
-            rays: cfg.ic_samples,
+    /// Checks ranges.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        let bad_px = |v: f32| v.is_nan() || v < 0.0 || v.is_infinite();
+        if bad_px(self.ic_min_pixels) || bad_px(self.ic_max_pixels) || self.ic_max_pixels < self.ic_min_pixels {
+            anyhow::bail!(
+                "irradiance cache: need 0 <= ic_min_pixels <= ic_max_pixels (finite), got {} and {}",
+                self.ic_min_pixels,
+                self.ic_max_pixels
+            );
         }
+        let bad = |v: f32| v.is_nan() || v <= 0.0;
+        if bad(self.ic_tolerance) || bad(self.ic_min_radius) || bad(self.ic_max_radius) || self.ic_max_radius < self.ic_min_radius {
+            anyhow::bail!("irradiance cache: need ic_tolerance > 0 and 0 < ic_min_radius <= ic_max_radius");
+        }
+        if self.ic_samples == 0 {
+            anyhow::bail!("ic_samples must be at least 1");
+        }
+        Ok(())
     }
 }
 
@@ -174,7 +183,7 @@ impl IrradianceCache {
         if self.tree.is_empty() {
             return None;
         }
-        let a = self.settings.tolerance;
+        let a = self.settings.ic_tolerance;
         let reach = a * self.largest;
         let (mut ws, mut acc) = (0.0f32, Color::ZERO);
         self.tree.for_each_within(p, reach * reach, &mut |i, _| {
@@ -183,7 +192,7 @@ impl IrradianceCache {
             if w <= 0.0 {
                 return;
             }
-            let ei = if self.settings.gradients { e.extrapolate(p, n) } else { e.irradiance };
+            let ei = if self.settings.ic_gradients { e.extrapolate(p, n) } else { e.irradiance };
             if w.is_infinite() {
                 ws = f32::INFINITY;
                 acc = ei;
@@ -211,7 +220,7 @@ impl IrradianceCache {
         all.extend(new);
         self.largest = all.iter().map(|e| e.radius).fold(0.0, f32::max);
         self.tree = KdTree::build(all);
-        if self.settings.neighbor_clamp {
+        if self.settings.ic_neighbor_clamp {
             self.clamp_neighbours();
         }
     }
@@ -243,26 +252,17 @@ impl IrradianceCache {
         self.largest = self.tree.points.iter().map(|e| e.radius).fold(0.0, f32::max);
     }
 
-    /// Computes an entry at `it`, whose pixel footprint (scene units) is `footprint`.
-    #[allow(clippy::too_many_arguments)]
-    fn entry_at(
-        &self,
-        ctx: &PhotonContext,
-        world: &World,
-        it: &Interaction,
-        wo: Vec3,
-        footprint: f32,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> CacheEntry {
+    /// Computes an entry at `at`, whose pixel footprint (scene units) is `footprint`.
+    fn entry_at(&self, ctx: &PhotonContext, at: &GatherPoint, footprint: f32, stats: &mut TraversalStats) -> CacheEntry {
         let st = &self.settings;
-        let g = hemisphere::gather(ctx, world, it, wo, st.rays, key, stats);
+        let (world, it, wo) = (at.world, at.it, at.wo);
+        let g = hemisphere::gather(ctx, at, st.ic_samples, stats);
         let scene_r = world.lights.scene_radius;
-        let lo = (st.min_frac * scene_r).max(st.min_pixels * footprint);
-        let hi = (st.max_frac * scene_r).min(st.max_pixels * footprint).max(lo);
+        let lo = (st.ic_min_radius * scene_r).max(st.ic_min_pixels * footprint);
+        let hi = (st.ic_max_radius * scene_r).min(st.ic_max_pixels * footprint).max(lo);
         let mut r = g.harmonic_distance;
         let mut trans = g.trans_grad;
-        if st.gradients {
+        if st.ic_gradients {
             // Limit R by the gradient: E changes by no more than itself within R.
             let mean_e = crate::math::mean(g.irradiance);
             let grad = (trans[0] + trans[1] + trans[2]) / 3.0;
@@ -285,8 +285,8 @@ impl IrradianceCache {
             radius: r.clamp(lo, hi),
             radius_unclamped: r,
             radius_bounds: (lo, hi),
-            rot_grad: if st.gradients { g.rot_grad } else { [Vec3::ZERO; 3] },
-            trans_grad: if st.gradients { trans } else { [Vec3::ZERO; 3] },
+            rot_grad: if st.ic_gradients { g.rot_grad } else { [Vec3::ZERO; 3] },
+            trans_grad: if st.ic_gradients { trans } else { [Vec3::ZERO; 3] },
         }
     }
 
@@ -318,7 +318,7 @@ impl IrradianceCache {
                     }
                     let cos = wo.dot(it.sp.ng).abs().max(0.05);
                     let footprint = path.length * pixel_angle / cos.sqrt();
-                    Some(self.entry_at(ctx, world, &it, wo, footprint, key, &mut stats))
+                    Some(self.entry_at(ctx, &GatherPoint { world, it: &it, wo, bsdf, key }, footprint, &mut stats))
                 })
                 .collect();
             self.insert(new);
@@ -344,31 +344,21 @@ impl Gather for IrradianceCache {
         self.prefill(ctx, world, quiet);
         Ok(())
     }
-    #[allow(clippy::too_many_arguments)]
-    fn indirect(
-        &self,
-        ctx: &PhotonContext,
-        world: &World,
-        it: &Interaction,
-        wo: Vec3,
-        bsdf: &Bsdf,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> Color {
-        if !cacheable(bsdf) {
-            return ctx.gathered_indirect(world, it, wo, bsdf, 0, key, stats);
+    fn indirect(&self, ctx: &PhotonContext, at: &GatherPoint, stats: &mut TraversalStats) -> Color {
+        if !cacheable(at.bsdf) {
+            return ctx.gathered_indirect(at, 0, stats);
         }
-        let e = match self.lookup(it.p, facing_shading_normal(it, wo)) {
+        let e = match self.lookup(at.it.p, facing_shading_normal(at.it, at.wo)) {
             Some(e) => {
                 self.hits.fetch_add(1, Ordering::Relaxed);
                 e
             }
             None => {
                 self.misses.fetch_add(1, Ordering::Relaxed);
-                ctx.final_gather(world, it, wo, 0, key, stats).irradiance
+                ctx.final_gather(at, 0, stats).irradiance
             }
         };
-        bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e + ctx.glossy_gather(world, it, wo, bsdf, 0, key, stats)
+        at.bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e + ctx.glossy_gather(at, 0, stats)
     }
     fn counters(&self) -> Vec<(String, f64)> {
         vec![
@@ -406,7 +396,7 @@ mod tests {
     }
 
     fn test_settings() -> CacheSettings {
-        CacheSettings::from_config(&RenderConfig::default())
+        CacheSettings::default()
     }
 
     /// Gradients extrapolate: an entry with ∇_t E = (1, 0, 0) read 0.1 to its right
@@ -442,14 +432,14 @@ mod tests {
         let a = radii(vec![big, small]);
         assert_eq!(a, radii(vec![small, big]));
         assert!((a[1] - 0.35).abs() < 1e-6 && a[0] == 0.05, "{a:?}");
-        let mut off = IrradianceCache::new(CacheSettings { neighbor_clamp: false, ..test_settings() });
+        let mut off = IrradianceCache::new(CacheSettings { ic_neighbor_clamp: false, ..test_settings() });
         off.insert(vec![big, small]);
         assert!(off.entries().iter().any(|e| e.radius == 1.0));
     }
 
     #[test]
     fn lookup_interpolates_by_weight() {
-        let mut c = IrradianceCache::new(CacheSettings { tolerance: 0.5, neighbor_clamp: false, ..test_settings() });
+        let mut c = IrradianceCache::new(CacheSettings { ic_tolerance: 0.5, ic_neighbor_clamp: false, ..test_settings() });
         assert!(c.lookup(Vec3::ZERO, Vec3::Z).is_none());
         c.insert(vec![
             CacheEntry::new(Vec3::new(-0.1, 0.0, 0.0), Vec3::Z, Color::splat(1.0), 1.0),

@@ -1,0 +1,22 @@
+//! `direct`: direct visualisation of the photon map at the first diffuse hit (the
+//! design report's noisy baseline). Direct light is ray traced and caustics come from
+//! the caustic map, so the photon estimate here uses the indirect map only — adding
+//! the direct map would count direct light twice.
+
+use super::Gather;
+use crate::accel::TraversalStats;
+use crate::integrator::photon::context::{GatherPoint, PhotonContext};
+use crate::math::Color;
+use crate::photon::estimate::{self, with_heap};
+
+/// Direct visualisation.
+pub struct DirectVisualisation;
+
+impl Gather for DirectVisualisation {
+    fn name(&self) -> &'static str {
+        "direct"
+    }
+    fn indirect(&self, ctx: &PhotonContext, at: &GatherPoint, _stats: &mut TraversalStats) -> Color {
+        with_heap(|h| estimate::radiance(&ctx.maps.indirect, at.it, at.wo, at.bsdf, &ctx.est_global, h))
+    }
+}
