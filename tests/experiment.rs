@@ -265,7 +265,7 @@ threads = [1, 2]
 #[test]
 fn shipped_manifests_validate_and_missing_models_are_clear_errors() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
-    let mut n = 0;
+    let (mut n, mut loaded) = (0, 0);
     for dir in [root.clone(), root.join("external")] {
         for e in std::fs::read_dir(&dir).unwrap() {
             let p = e.unwrap().path();
@@ -273,10 +273,21 @@ fn shipped_manifests_validate_and_missing_models_are_clear_errors() {
                 let m = Manifest::load(&p).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
                 assert!(!m.cells.is_empty());
                 n += 1;
+                // Every scene loads, except external models absent here (which must say where to get them).
+                for s in &m.scenes {
+                    match s.check_files() {
+                        Ok(()) => {
+                            s.load(m.resolution).unwrap_or_else(|e| panic!("{e:#}"));
+                            loaded += 1;
+                        }
+                        Err(e) => assert!(format!("{e:#}").contains("download it from"), "{e:#}"),
+                    }
+                }
             }
         }
     }
-    assert!(n >= 9, "only {n} manifests");
+    assert!(n >= 9 && loaded >= n - 2, "only {n} manifests, {loaded} scenes loaded");
+    eprintln!("{n} manifests, {loaded} scenes loaded");
     // The external models are not in the repository: running says where to get them.
     let d = scratch("external");
     let text = std::fs::read_to_string(root.join("external/dragon.toml")).unwrap();
@@ -386,8 +397,8 @@ builtin = "cornell"
 [[scene.mesh]]
 obj = "tet.obj"
 fit_height = 150.0
-at = [278.0, 0.0, 280.0]
-albedo = [0.5, 0.5, 0.5]
+translate = [278.0, 0.0, 280.0]
+material = { type = "diffuse", albedo = [0.5, 0.5, 0.5] }
 [[scene.light]]
 type = "point"
 position = [278.0, 400.0, 280.0]
@@ -419,6 +430,106 @@ spp = 1
     // Without the model, the error names the manifest and the missing file.
     std::fs::remove_file(d.join("tet.obj")).unwrap();
     let e = format!("{:#}", Manifest::load(&p).unwrap().scenes[0].load([12, 12]).unwrap_err());
-    assert!(e.contains("m.toml:3") && e.contains("tet.obj") && e.contains("not found"), "{e}");
+    assert!(e.contains("m.toml:5: [[scene.mesh]] 1") && e.contains("tet.obj") && e.contains("not found"), "{e}");
+    std::fs::remove_dir_all(d).ok();
+}
+
+/// A floor quad (2 × 2 at y = 0, facing up) with its own grey MTL material.
+fn write_floor(d: &Path) {
+    write(d, "floor.mtl", "newmtl grey\nKd 0.5 0.5 0.5\n");
+    write(d, "floor.obj", "mtllib floor.mtl\nusemtl grey\nv -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 4 3 2\n");
+}
+
+/// The scene of the two tests below in the scene contract's keys: a floor, a raised
+/// glossy copy of it (material override), a spot light and a point light.
+const CONTRACT_SCENE: &str = r#"
+[camera]
+eye = [0.0, 1.5, 3.0]
+look_at = [0.0, 0.3, 0.0]
+fov_y_deg = 50.0
+resolution = [12, 12]
+
+[[mesh]]
+obj = "floor.obj"
+
+[[mesh]]
+obj = "floor.obj"
+scale = [0.4, 1.0, 0.3]
+rotate_y_deg = 30.0
+translate = [0.2, 0.5, 0.0]
+material = { type = "glossy", kd = [0.2, 0.3, 0.2], ks = [0.5, 0.5, 0.5], ns = 20 }
+
+[[light]]
+type = "spot"
+position = [0.0, 2.0, 0.0]
+direction = [0.0, -1.0, 0.1]
+intensity = [20.0, 18.0, 15.0]
+cone_deg = 25.0
+falloff_deg = 35.0
+
+[[light]]
+type = "point"
+position = [1.0, 1.0, 1.0]
+intensity = [0.5, 0.5, 0.5]
+"#;
+
+/// The contract scene as a manifest's inline `[scene]`: the same tables under `scene.`.
+fn inline(scene: &str) -> String {
+    scene.replace("[camera]", "[scene.camera]").replace("[[mesh]]", "[[scene.mesh]]").replace("[[light]]", "[[scene.light]]")
+}
+
+#[test]
+fn inline_scene_with_a_spot_light_and_a_material_override_renders() {
+    let d = scratch("inline-spot");
+    write_floor(&d);
+    // The camera's resolution is left out: the manifest's is used.
+    let scene = inline(CONTRACT_SCENE).replace("resolution = [12, 12]\n", "");
+    let text = format!(
+        "resolution = [12, 12]\n{scene}\n[reference]\nintegrator = \"path\"\nspp = 16\n\n\
+         [[configs]]\nname = \"path\"\nintegrator = \"path\"\nspp = 2\n\n\
+         [[configs]]\nname = \"photon\"\nintegrator = \"photon\"\nspp = 2\nphotons = 4000\ncaustic_photons = 0\n"
+    );
+    let p = write(&d, "m.toml", &text);
+    let m = Manifest::load(&p).unwrap();
+    let s = m.scenes[0].load(m.resolution).unwrap();
+    assert_eq!((s.camera.width, s.camera.height), (12, 12));
+    assert!(matches!(s.lights[0], photonlab::light::LightDesc::Spot { cone_deg: 25.0, falloff_deg: 35.0, .. }), "{:?}", s.lights);
+    let glossy = s.material(s.triangles.len() as u32 - 1);
+    assert!(matches!(glossy.bsdf, photonlab::material::Bsdf::Glossy(_)), "{glossy:?}");
+    let r = run_into(&p, &d.join("out"), None, false);
+    assert!(r.reference_rendered && r.finalized && r.ran == 2);
+    let lit = |dir: &Path| photonlab::film::Film::read_exr(&dir.join("reference-scene.exr")).unwrap().mean();
+    let with_override = lit(&d.join("out"));
+    assert!(with_override.min_element() > 0.0, "{with_override}");
+    // Without the override the raised quad is grey: a different image.
+    let plain = write(&d, "plain.toml", &text.replace("material = { type = \"glossy\"", "# material = { type = \"glossy\""));
+    run_into(&plain, &d.join("plain"), None, false);
+    assert_ne!(lit(&d.join("plain")), with_override);
+    std::fs::remove_dir_all(d).ok();
+}
+
+#[test]
+fn inline_scene_is_the_same_scene_as_the_file() {
+    let d = scratch("inline-same");
+    write_floor(&d);
+    write(&d, "s.toml", CONTRACT_SCENE);
+    let tail = "resolution = [12, 12]\n[reference]\nspp = 4\n[base]\nspp = 1\n";
+    let from_file = write(&d, "file.toml", &format!("scene = \"s.toml\"\n{tail}"));
+    let from_inline = write(&d, "inline.toml", &format!("{tail}{}", inline(CONTRACT_SCENE)));
+    let load = |p: &Path| {
+        let m = Manifest::load(p).unwrap();
+        m.scenes[0].load(m.resolution).unwrap()
+    };
+    let (a, b) = (load(&from_file), load(&from_inline));
+    assert_eq!(a.triangles, b.triangles);
+    assert_eq!((&a.tri_material, &a.tri_normals, &a.normals), (&b.tri_material, &b.tri_normals, &b.normals));
+    assert_eq!((&a.materials, &a.lights), (&b.materials, &b.lights));
+    assert_eq!(format!("{:?}", a.camera), format!("{:?}", b.camera));
+    assert_eq!(a.lights.len(), 2);
+    let cfg = photonlab::config::RenderConfig { spp: 2, ..Default::default() };
+    let render = |s| photonlab::pipeline::render_scene(s, &cfg, true).unwrap().film.pixels;
+    let (ia, ib) = (render(a), render(b));
+    assert!(ia.iter().zip(&ib).all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits)));
+    assert!(ia.iter().any(|c| c.max_element() > 0.0));
     std::fs::remove_dir_all(d).ok();
 }

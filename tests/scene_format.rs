@@ -434,3 +434,24 @@ fn export_round_trips_every_material_light_and_normals() {
     // Exporting the re-loaded scene again gives the same scene once more.
     round_trip(&back, "rt-sink2");
 }
+
+#[test]
+fn scene_files_reject_the_manifest_extensions() {
+    let d = tmp("extensions");
+    write(&d, "t.obj", TRI_OBJ);
+    // CAMERA is lines 1-5, then a blank line, [[mesh]] on 7, obj on 8, the extension on 9.
+    for (ext, line) in [("fit_height = 2", 9), ("download = \"https://x\"", 9)] {
+        let p = write(&d, "ext.toml", &format!("{CAMERA}\n[[mesh]]\nobj = \"t.obj\"\n{ext}\n{POINT}"));
+        let e = err_of(&p);
+        assert!(e.contains(&format!("ext.toml:{line}:")) && e.contains("manifest extension"), "{e}");
+    }
+    let p = write(&d, "base.toml", &format!("builtin = \"cornell\"\n{CAMERA}"));
+    let e = err_of(&p);
+    assert!(e.contains("base.toml:1:") && e.contains("`builtin`"), "{e}");
+    // Without a camera (which an inline scene on a base may leave out) and without a resolution.
+    let e = err_of(&write(&d, "nocam.toml", &format!("[[mesh]]\nobj = \"t.obj\"\n{POINT}")));
+    assert!(e.contains("nocam.toml") && e.contains("camera"), "{e}");
+    let e =
+        err_of(&write(&d, "nores.toml", &format!("{}\n[[mesh]]\nobj = \"t.obj\"\n{POINT}", CAMERA.replace("resolution = [32, 24]\n", ""))));
+    assert!(e.contains("nores.toml:1:") && e.contains("resolution"), "{e}");
+}

@@ -8,14 +8,11 @@
 //! integrator or strategy needs no change here. Every cell is validated
 //! ([`registry::validate`]) before anything renders; errors name `file:line`.
 
+pub use super::scene_spec::SceneSpec;
+use super::scene_spec::parse_scenes;
 use crate::config::RenderConfig;
-use crate::light::LightDesc;
-use crate::math::Color;
 use crate::registry;
-use crate::scene::obj::load_obj;
-use crate::scene::{Placement, Scene, builtin::builtin, loader::load_scene};
 use anyhow::{Result, anyhow, bail};
-use glam::Vec3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -39,7 +36,9 @@ type SpannedTable = BTreeMap<String, Spanned<Value>>;
 struct RawManifest {
     name: Option<String>,
     description: Option<String>,
-    scene: Spanned<Value>,
+    /// Read with its spans by [`parse_scenes`].
+    #[serde(rename = "scene")]
+    _scene: serde::de::IgnoredAny,
     resolution: Spanned<[u32; 2]>,
     repeats: Option<Spanned<u32>>,
     reference: Spanned<SpannedTable>,
@@ -56,106 +55,6 @@ pub enum ReferenceSpec {
     Render(Box<RenderConfig>),
     /// Read from an EXR file.
     File(PathBuf),
-}
-
-/// Where the scene comes from.
-#[derive(Clone, Debug, PartialEq)]
-pub enum SceneSource {
-    /// A built-in scene by name.
-    Builtin(String),
-    /// A scene TOML file.
-    File(PathBuf),
-    /// Nothing: meshes, lights and camera come from the manifest's `[scene]` table.
-    Empty,
-}
-
-/// A mesh added to the scene by the manifest (e.g. an external model).
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MeshSpec {
-    /// OBJ file, relative to the manifest's directory or absolute.
-    pub obj: PathBuf,
-    /// Scale the model uniformly so its bounding box is this tall (scene units).
-    pub fit_height: Option<f32>,
-    /// Uniform scale (when `fit_height` is absent); default 1.
-    pub scale: Option<f32>,
-    /// Where the bottom centre of the model's bounding box goes (with `fit_height`),
-    /// or the translation (without).
-    #[serde(default)]
-    pub at: [f32; 3],
-    /// Rotation about +y in degrees.
-    #[serde(default)]
-    pub rotate_y_deg: f32,
-    /// Replace the model's materials by a diffuse albedo.
-    pub albedo: Option<[f32; 3]>,
-    /// Where to download the model (shown when the file is missing).
-    pub download: Option<String>,
-}
-
-/// A camera given in the manifest (replaces the base scene's).
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CameraSpec {
-    /// Eye position.
-    pub eye: [f32; 3],
-    /// Point looked at.
-    pub look_at: [f32; 3],
-    /// Up vector.
-    #[serde(default = "up_y")]
-    pub up: [f32; 3],
-    /// Full vertical field of view in degrees.
-    pub fov_y_deg: f32,
-}
-
-fn up_y() -> [f32; 3] {
-    [0.0, 1.0, 0.0]
-}
-
-/// A light added by the manifest.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
-pub enum LightSpec {
-    /// Point light (intensity W/sr).
-    Point {
-        /// Position.
-        position: [f32; 3],
-        /// Radiant intensity.
-        intensity: [f32; 3],
-    },
-    /// Directional light (irradiance W/m² on a surface facing it).
-    Directional {
-        /// Direction the light travels.
-        direction: [f32; 3],
-        /// Irradiance.
-        irradiance: [f32; 3],
-    },
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SceneTable {
-    builtin: Option<String>,
-    file: Option<PathBuf>,
-    camera: Option<CameraSpec>,
-    #[serde(default)]
-    mesh: Vec<MeshSpec>,
-    #[serde(default)]
-    light: Vec<LightSpec>,
-}
-
-/// The scene of a manifest.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SceneSpec {
-    /// Base scene.
-    pub source: SceneSource,
-    /// Camera replacing the base scene's.
-    pub camera: Option<CameraSpec>,
-    /// Added meshes.
-    pub meshes: Vec<MeshSpec>,
-    /// Added lights.
-    pub lights: Vec<LightSpec>,
-    /// `file:line` of the `scene` key, for messages.
-    pub at: String,
 }
 
 /// One render of an experiment: a configuration and a repeat.
@@ -340,23 +239,7 @@ impl Manifest {
             bail!("{}: resolution must be positive, got {}x{}", loc.at(raw.resolution.span()), resolution[0], resolution[1]);
         }
         let res_value = Value::Array(vec![Value::Integer(resolution[0] as i64), Value::Integer(resolution[1] as i64)]);
-        let scenes = match raw.scene.get_ref() {
-            Value::Array(list) => {
-                if list.is_empty() {
-                    bail!("{}: scene: empty list", loc.at(raw.scene.span()));
-                }
-                let mut v: Vec<SceneSpec> = Vec::new();
-                for x in list {
-                    let sc = parse_scene(&Spanned::new(raw.scene.span(), x.clone()), &loc, dir)?;
-                    if v.iter().any(|o| o.name() == sc.name()) {
-                        bail!("{}: scene `{}` is listed twice", loc.at(raw.scene.span()), sc.name());
-                    }
-                    v.push(sc);
-                }
-                v
-            }
-            _ => vec![parse_scene(&raw.scene, &loc, dir)?],
-        };
+        let scenes = parse_scenes(text, path, dir)?;
 
         // Reference.
         let reference = {
@@ -693,156 +576,6 @@ fn named_configs(c: &Spanned<Vec<Spanned<SpannedTable>>>, loc: &Loc) -> Result<E
         });
     }
     Ok((drafts, vec!["name".into()], vec![]))
-}
-
-fn parse_scene(v: &Spanned<Value>, loc: &Loc, dir: &Path) -> Result<SceneSpec> {
-    let at = loc.at(v.span());
-    match v.get_ref() {
-        Value::String(s) => {
-            let source =
-                if s.ends_with(".toml") || s.contains('/') { SceneSource::File(dir.join(s)) } else { SceneSource::Builtin(s.clone()) };
-            if let SceneSource::Builtin(b) = &source {
-                builtin_exists(b).map_err(|e| anyhow!("{at}: scene: {e}"))?;
-            }
-            Ok(SceneSpec { source, camera: None, meshes: vec![], lights: vec![], at })
-        }
-        Value::Table(t) => {
-            let st: SceneTable = t.clone().try_into().map_err(|e| anyhow!("{at}: [scene]: {}", e.message().replace('\n', " ")))?;
-            let source = match (st.builtin, st.file) {
-                (Some(_), Some(_)) => bail!("{at}: [scene]: give `builtin` or `file`, not both"),
-                (Some(b), None) => {
-                    builtin_exists(&b).map_err(|e| anyhow!("{at}: [scene]: {e}"))?;
-                    SceneSource::Builtin(b)
-                }
-                (None, Some(f)) => SceneSource::File(dir.join(f)),
-                (None, None) => SceneSource::Empty,
-            };
-            if source == SceneSource::Empty && st.camera.is_none() {
-                bail!("{at}: [scene]: without a `builtin` or `file` base scene, a [scene.camera] is required");
-            }
-            let meshes = st.mesh.into_iter().map(|mut m| {
-                m.obj = dir.join(&m.obj);
-                m
-            });
-            Ok(SceneSpec { source, camera: st.camera, meshes: meshes.collect(), lights: st.light, at })
-        }
-        other => bail!("{at}: scene must be a built-in name, a scene file path or a [scene] table, got {other}"),
-    }
-}
-
-fn builtin_exists(name: &str) -> Result<()> {
-    if crate::scene::builtin::BUILTINS.contains(&name) {
-        Ok(())
-    } else {
-        bail!(
-            "unknown built-in scene `{name}` (known: {}; a scene file path must end in .toml)",
-            crate::scene::builtin::BUILTINS.join(", ")
-        )
-    }
-}
-
-impl SceneSpec {
-    /// Short name: the built-in's name, the scene file's stem, or `scene`.
-    pub fn name(&self) -> String {
-        match &self.source {
-            SceneSource::Builtin(b) => b.clone(),
-            SceneSource::File(p) => p.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned()),
-            SceneSource::Empty => "scene".into(),
-        }
-    }
-
-    /// Checks that every file the scene needs exists (before anything renders).
-    pub fn check_files(&self) -> Result<()> {
-        if let SceneSource::File(p) = &self.source
-            && !p.is_file()
-        {
-            bail!("{}: scene file {} not found", self.at, p.display());
-        }
-        for m in &self.meshes {
-            if !m.obj.is_file() {
-                let hint =
-                    m.download.as_ref().map(|d| format!(" — download it from {d} (see README, \"## Experiments\")")).unwrap_or_default();
-                bail!("{}: model {} not found{hint}; set its path in the manifest's [[scene.mesh]] obj", self.at, m.obj.display());
-            }
-        }
-        Ok(())
-    }
-
-    /// Builds the scene.
-    pub fn load(&self, resolution: [u32; 2]) -> Result<Scene> {
-        self.check_files()?;
-        // The manifest's camera, if it gives one (it replaces the scene's).
-        let camera = match &self.camera {
-            Some(c) => Some(
-                crate::camera::Camera::new(
-                    Vec3::from_array(c.eye),
-                    Vec3::from_array(c.look_at),
-                    Vec3::from_array(c.up),
-                    c.fov_y_deg,
-                    resolution[0],
-                    resolution[1],
-                )
-                .map_err(|e| anyhow!("{}: [scene.camera]: {e}", self.at))?,
-            ),
-            None => None,
-        };
-        let mut scene = match &self.source {
-            SceneSource::Builtin(b) => builtin(b)?,
-            SceneSource::File(p) => load_scene(p)?,
-            SceneSource::Empty => {
-                let cam = camera.clone().ok_or_else(|| anyhow!("{}: [scene] needs a camera", self.at))?;
-                Scene::new("scene", cam)
-            }
-        };
-        if let Some(cam) = camera {
-            scene.camera = cam;
-        }
-        for m in &self.meshes {
-            let obj = load_obj(&m.obj).map_err(|e| anyhow!("{}: {e}", self.at))?;
-            scene.warnings.extend(obj.warnings);
-            let mut mesh = obj.mesh;
-            if mesh.positions.is_empty() {
-                bail!("{}: model {} has no vertices", self.at, m.obj.display());
-            }
-            let place = if let Some(h) = m.fit_height {
-                // Move the model's bounding box to sit on the origin, then scale it to
-                // the requested height and put it at `at`.
-                let (lo, hi) = mesh
-                    .positions
-                    .iter()
-                    .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(a, b), p| (a.min(*p), b.max(*p)));
-                let height = hi.y - lo.y;
-                if !(height > 0.0 && h > 0.0 && h.is_finite()) {
-                    bail!("{}: model {}: cannot fit a flat model or to a non-positive height", self.at, m.obj.display());
-                }
-                let offset = Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
-                for p in &mut mesh.positions {
-                    *p -= offset;
-                }
-                Placement { scale: Vec3::splat(h / height), rotate_y_deg: m.rotate_y_deg, translate: Vec3::from_array(m.at) }
-            } else {
-                Placement { scale: Vec3::splat(m.scale.unwrap_or(1.0)), rotate_y_deg: m.rotate_y_deg, translate: Vec3::from_array(m.at) }
-            };
-            let over = m.albedo.map(|a| crate::material::Material::diffuse("model", Color::from_array(a)));
-            scene.add_mesh(&mesh, &place, over.as_ref()).map_err(|e| anyhow!("{}: {}: {e}", self.at, m.obj.display()))?;
-        }
-        for l in &self.lights {
-            scene.lights.push(match l {
-                LightSpec::Point { position, intensity } => {
-                    LightDesc::Point { position: Vec3::from_array(*position), intensity: Color::from_array(*intensity) }
-                }
-                LightSpec::Directional { direction, irradiance } => {
-                    let d = Vec3::from_array(*direction);
-                    if d.length_squared() == 0.0 || !d.is_finite() {
-                        bail!("{}: [[scene.light]] direction must be a non-zero vector", self.at);
-                    }
-                    LightDesc::Directional { direction: d.normalize(), irradiance: Color::from_array(*irradiance) }
-                }
-            });
-        }
-        scene.validate().map_err(|e| anyhow!("{}: scene: {e}", self.at))?;
-        Ok(scene)
-    }
 }
 
 #[cfg(test)]

@@ -17,6 +17,7 @@ pub mod metrics;
 pub mod output;
 pub mod plots;
 pub mod refnoise;
+pub mod scene_spec;
 pub mod summary;
 
 use crate::film::{Film, write_atomic};

@@ -57,20 +57,8 @@ pub fn write_summary(path: &Path, info: &SummaryInfo, stats: &[ConfigStats]) -> 
     if !m.description.trim().is_empty() {
         let _ = writeln!(s, "{}\n", m.description.trim());
     }
-    let scenes: Vec<String> = m
-        .scenes
-        .iter()
-        .zip(info.references)
-        .map(|(sc, r)| {
-            let what = match &sc.source {
-                super::manifest::SceneSource::Builtin(b) => format!("built-in `{b}`"),
-                super::manifest::SceneSource::File(p) => format!("`{}`", p.display()),
-                super::manifest::SceneSource::Empty => "defined in the manifest".into(),
-            };
-            let models = if sc.meshes.is_empty() { String::new() } else { format!(" + {} model(s)", sc.meshes.len()) };
-            format!("{what}{models} (reference: {})", r.description)
-        })
-        .collect();
+    let scenes: Vec<String> =
+        m.scenes.iter().zip(info.references).map(|(sc, r)| format!("{} (reference: {})", sc.describe(), r.description)).collect();
     let _ = writeln!(
         s,
         "Scene {}; {}×{} pixels. {} configuration(s) × {} repeat(s) = {} cells; photonlab {}. \

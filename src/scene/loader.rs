@@ -1,4 +1,12 @@
-//! Scene TOML reading per `scene-format.md`.
+//! Scene TOML reading per `scene-format.md`, for scene files and for the inline scene
+//! of an experiment manifest.
+//!
+//! Reading is two steps. [`SceneDesc::from_toml`] turns an already-parsed TOML value
+//! (a whole scene file, or a manifest's `scene` table) plus the directory relative
+//! paths start from into a checked description: every problem of the TOML itself
+//! (unknown key, wrong type, bad placement, material or light) is reported there, with
+//! `file:line`, before any mesh is read. [`SceneDesc::build`] then reads the OBJ/MTL
+//! files and makes the [`Scene`]. [`load_scene`] does both for a scene file.
 //!
 //! Choices where the contract is silent:
 //! * `[camera]`: `eye`, `look_at`, `fov_y_deg` and `resolution` are required; `up`
@@ -12,31 +20,49 @@
 //! * Unknown keys and unknown material or light types are errors.
 //! * A mesh whose OBJ has no faces is skipped with a warning.
 //!
-//! Every error is one line naming the scene file, with `line:column` where the TOML
-//! parser or the value's position tells it, and the OBJ/MTL `file:line` for errors
-//! inside a mesh.
+//! Manifest extensions ([`Dialect::Inline`] only; a scene file using one is an error,
+//! so scene files stay exactly the contract that other tools read):
+//! * `builtin = "NAME"` or `file = "PATH.toml"`: a base scene the table adds to; its
+//!   camera is kept unless the table gives a `[camera]`, which is then optional.
+//! * `[camera]` `resolution` may be left out (the manifest's resolution is used).
+//! * `[[mesh]]` `fit_height = H` (instead of `scale`): the model is moved so that the
+//!   bottom centre of its bounding box is the origin and scaled uniformly to height
+//!   `H`; `rotate_y_deg` and `translate` then apply as usual (so `translate` is where
+//!   the bottom centre goes). For models whose units and origin depend on where they
+//!   were downloaded from.
+//! * `[[mesh]]` `download = "..."`: where to get a missing model (shown in the error).
+//!
+//! Every error is one line naming the scene (or manifest) file, with `line:column`
+//! where the TOML parser or the value's position tells it, and the OBJ/MTL
+//! `file:line` for errors inside a mesh.
 
+use super::builtin::{BUILTINS, builtin};
 use super::obj::{ObjFile, load_obj};
 use super::{Placement, Scene, unit_or_zero};
 use crate::camera::Camera;
 use crate::light::LightDesc;
 use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Material, Mirror};
 use crate::math::Color;
-use anyhow::{Result, anyhow};
+use anyhow::{Result, anyhow, bail};
 use glam::Vec3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
+use toml::de::{DeTable, DeValue, ValueDeserializer};
 
-/// The whole scene file.
+/// A scene table: the contract's keys, plus the manifest's base-scene keys.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneToml {
-    camera: Spanned<CameraToml>,
+    camera: Option<Spanned<CameraToml>>,
     #[serde(default)]
     mesh: Vec<Spanned<MeshToml>>,
     #[serde(default)]
     light: Vec<Spanned<LightToml>>,
+    /// Extension: a built-in base scene.
+    builtin: Option<Spanned<String>>,
+    /// Extension: a scene file as base scene.
+    file: Option<Spanned<String>>,
 }
 
 fn default_up() -> [f32; 3] {
@@ -51,7 +77,8 @@ struct CameraToml {
     #[serde(default = "default_up")]
     up: [f32; 3],
     fov_y_deg: f32,
-    resolution: [u32; 2],
+    /// Required in a scene file; optional (extension) inline.
+    resolution: Option<[u32; 2]>,
 }
 
 #[derive(Deserialize)]
@@ -66,8 +93,11 @@ struct MeshToml {
     translate: Option<[f32; 3]>,
     #[serde(default)]
     material: Option<OverrideToml>,
+    /// Extension: scale to this height, standing on `translate`.
+    fit_height: Option<Spanned<f32>>,
+    /// Extension: where to download a missing model.
+    download: Option<Spanned<String>>,
 }
-
 /// `scale = s` or `scale = [sx, sy, sz]`.
 struct Scale(Vec3);
 
@@ -148,27 +178,6 @@ enum LightToml {
     Directional { direction: [f32; 3], irradiance: [f32; 3] },
 }
 
-/// 1-based line and column of a byte offset (also used for manifest errors).
-pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
-}
-
-/// Where a value sits in the scene file, for messages: `file:line`.
-struct Locator<'a> {
-    file: &'a Path,
-    text: &'a str,
-}
-
-impl Locator<'_> {
-    fn at<T>(&self, s: &Spanned<T>) -> String {
-        let (l, _) = line_col(self.text, s.span().start);
-        format!("{}:{l}", self.file.display())
-    }
-}
-
 /// Checks a colour: finite, non-negative.
 fn colour(c: [f32; 3], what: &str) -> std::result::Result<Color, String> {
     let v = Vec3::from_array(c);
@@ -247,85 +256,348 @@ fn light_desc(l: &LightToml) -> std::result::Result<LightDesc, String> {
     })
 }
 
+/// 1-based line and column of a byte offset (also used for manifest errors).
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+/// The text a parsed TOML value's spans point into, and the file that names it in
+/// messages.
+#[derive(Clone, Copy)]
+pub struct TomlSource<'a> {
+    /// File named in messages.
+    pub file: &'a Path,
+    /// Its text.
+    pub text: &'a str,
+}
+
+impl TomlSource<'_> {
+    /// `file:line` of a byte offset.
+    pub fn line(&self, offset: usize) -> String {
+        format!("{}:{}", self.file.display(), line_col(self.text, offset).0)
+    }
+
+    fn at<T>(&self, s: &Spanned<T>) -> String {
+        self.line(s.span().start)
+    }
+
+    /// A TOML parse or deserialisation error as `file:line:column: message`.
+    pub fn error(&self, e: &toml::de::Error) -> anyhow::Error {
+        let msg = e.message().replace('\n', " ");
+        match e.span() {
+            Some(s) => {
+                let (l, c) = line_col(self.text, s.start);
+                anyhow!("{}:{l}:{c}: {msg}", self.file.display())
+            }
+            None => anyhow!("{}: {msg}", self.file.display()),
+        }
+    }
+}
+
+/// Which keys a scene table may use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dialect {
+    /// A scene file: exactly the contract.
+    File,
+    /// A manifest's `[scene]` table: the contract plus the extensions listed in the
+    /// module documentation; its tables are named `[scene.camera]`, `[[scene.mesh]]`, …
+    /// in messages.
+    Inline,
+}
+
+impl Dialect {
+    fn prefix(self) -> &'static str {
+        match self {
+            Dialect::File => "",
+            Dialect::Inline => "scene.",
+        }
+    }
+}
+
+/// The scene an inline scene adds to (manifest extension).
+#[derive(Clone, Debug, PartialEq)]
+pub enum SceneBase {
+    /// A built-in scene by name.
+    Builtin(String),
+    /// A scene file (its path resolved against the manifest's directory).
+    File(PathBuf),
+}
+
+impl SceneBase {
+    /// A built-in base scene, checking the name.
+    pub fn builtin(name: &str) -> Result<SceneBase> {
+        if BUILTINS.contains(&name) {
+            Ok(SceneBase::Builtin(name.to_string()))
+        } else {
+            bail!("unknown built-in scene `{name}` (known: {}; a scene file path must end in .toml)", BUILTINS.join(", "))
+        }
+    }
+}
+
+/// A `[camera]`, checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraDesc {
+    /// Eye position.
+    pub eye: Vec3,
+    /// Point the optical axis passes through.
+    pub look_at: Vec3,
+    /// Up vector.
+    pub up: Vec3,
+    /// Full vertical field of view in degrees.
+    pub fov_y_deg: f32,
+    /// Image size; `None` (inline only) takes the resolution passed to `build`.
+    pub resolution: Option<[u32; 2]>,
+    /// `file:line: [camera]`, for messages.
+    pub at: String,
+}
+
+impl CameraDesc {
+    fn camera(&self, resolution: Option<[u32; 2]>) -> Result<Camera> {
+        let [w, h] = self.resolution.or(resolution).ok_or_else(|| anyhow!("{}: missing field `resolution`", self.at))?;
+        Camera::new(self.eye, self.look_at, self.up, self.fov_y_deg, w, h).map_err(|e| anyhow!("{}: {e}", self.at))
+    }
+}
+
+/// A `[[mesh]]`, checked but not read yet.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshDesc {
+    /// OBJ file (relative paths already resolved).
+    pub obj: PathBuf,
+    /// Placement (with `fit_height`, its scale is replaced when the model is read).
+    pub placement: Placement,
+    /// Extension: uniform scale to this height, bounding box bottom centre at the origin.
+    pub fit_height: Option<f32>,
+    /// Material override for every triangle.
+    pub material: Option<Material>,
+    /// Extension: where to download the model when it is missing.
+    pub download: Option<String>,
+    /// `file:line: [[mesh]] N`, for messages.
+    pub at: String,
+}
+
+/// A scene description: what a scene file or a manifest's inline scene says, checked,
+/// with no mesh file read yet.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneDesc {
+    /// Base scene the description adds to (inline only).
+    pub base: Option<SceneBase>,
+    /// Camera (replaces the base scene's).
+    pub camera: Option<CameraDesc>,
+    /// Meshes, in order (after the base scene's).
+    pub meshes: Vec<MeshDesc>,
+    /// Non-geometric lights (after the base scene's).
+    pub lights: Vec<LightDesc>,
+    /// The file (scene file) or `file:line` of the table (inline), for messages about
+    /// the whole scene.
+    pub at: String,
+}
+
+/// Error for an extension key used in a scene file.
+fn not_in_file<T>(src: &TomlSource, key: &str, v: &Option<Spanned<T>>) -> Result<()> {
+    match v {
+        Some(s) => bail!("{}: `{key}` is an experiment-manifest extension, not a scene-file key (scene-format.md)", src.at(s)),
+        None => Ok(()),
+    }
+}
+
+impl SceneDesc {
+    /// A description that is just a base scene (a manifest's `scene = "NAME"`).
+    pub fn of_base(base: SceneBase, at: String) -> SceneDesc {
+        SceneDesc { base: Some(base), camera: None, meshes: vec![], lights: vec![], at }
+    }
+
+    /// Reads a scene table from an already-parsed TOML value: `src` is the text its
+    /// spans point into (for `file:line` in messages), `dir` the directory relative
+    /// paths start from, `dialect` whether the manifest extensions are allowed.
+    pub fn from_toml(value: Spanned<DeValue<'_>>, src: TomlSource, dir: &Path, dialect: Dialect) -> Result<SceneDesc> {
+        let p = dialect.prefix();
+        let at = match dialect {
+            Dialect::File => src.file.display().to_string(),
+            Dialect::Inline => src.line(value.span().start),
+        };
+        let doc = SceneToml::deserialize(ValueDeserializer::from(value)).map_err(|e| src.error(&e))?;
+        if dialect == Dialect::File {
+            not_in_file(&src, "builtin", &doc.builtin)?;
+            not_in_file(&src, "file", &doc.file)?;
+        }
+        let base = match (&doc.builtin, &doc.file) {
+            (Some(_), Some(f)) => bail!("{}: [scene]: give `builtin` or `file`, not both", src.at(f)),
+            (Some(b), None) => Some(SceneBase::builtin(b.get_ref()).map_err(|e| anyhow!("{}: [scene]: {e}", src.at(b)))?),
+            (None, Some(f)) => Some(SceneBase::File(dir.join(f.get_ref()))),
+            (None, None) => None,
+        };
+        let camera = match &doc.camera {
+            Some(c) => Some(camera_desc(c, &src, dialect)?),
+            None if base.is_some() => None,
+            None => match dialect {
+                Dialect::File => bail!("{at}: missing field `camera`"),
+                Dialect::Inline => bail!("{at}: [scene]: without a `builtin` or `file` base scene, a [scene.camera] is required"),
+            },
+        };
+        let mut meshes = Vec::new();
+        for (i, m) in doc.mesh.iter().enumerate() {
+            meshes.push(mesh_desc(m, i, &src, dir, dialect)?);
+        }
+        let mut lights = Vec::new();
+        for (i, l) in doc.light.iter().enumerate() {
+            lights.push(light_desc(l.get_ref()).map_err(|e| anyhow!("{}: [[{p}light]] {}: {e}", src.at(l), i + 1))?);
+        }
+        Ok(SceneDesc { base, camera, meshes, lights, at })
+    }
+
+    /// Builds the scene: the base scene (if any), then the camera, the meshes (read
+    /// now) and the lights. `name` names a scene without a base; `resolution` is used
+    /// where the camera gives none.
+    ///
+    /// Non-fatal remarks (undefined materials, negative scales, dropped zero-area
+    /// triangles, ignored MTL statements) end up in `scene.warnings`.
+    pub fn build(&self, name: &str, resolution: Option<[u32; 2]>) -> Result<Scene> {
+        let camera = self.camera.as_ref().map(|c| c.camera(resolution)).transpose()?;
+        let mut scene = match (&self.base, camera) {
+            (Some(base), camera) => {
+                let mut s = match base {
+                    SceneBase::Builtin(b) => builtin(b).map_err(|e| anyhow!("{}: {e:#}", self.at))?,
+                    SceneBase::File(f) => load_scene(f)?,
+                };
+                if let Some(c) = camera {
+                    s.camera = c;
+                }
+                s
+            }
+            (None, Some(c)) => Scene::new(name, c),
+            (None, None) => bail!("{}: missing field `camera`", self.at),
+        };
+        for m in &self.meshes {
+            m.add_to(&mut scene)?;
+        }
+        scene.lights.extend(self.lights.iter().cloned());
+        scene.validate().map_err(|e| anyhow!("{}: {e}", self.at))?;
+        Ok(scene)
+    }
+}
+
+fn camera_desc(c: &Spanned<CameraToml>, src: &TomlSource, dialect: Dialect) -> Result<CameraDesc> {
+    let at = format!("{}: [{}camera]", src.at(c), dialect.prefix());
+    let t = c.get_ref();
+    if dialect == Dialect::File && t.resolution.is_none() {
+        bail!("{at}: missing field `resolution`");
+    }
+    let d = CameraDesc {
+        eye: Vec3::from_array(t.eye),
+        look_at: Vec3::from_array(t.look_at),
+        up: Vec3::from_array(t.up),
+        fov_y_deg: t.fov_y_deg,
+        resolution: t.resolution,
+        at,
+    };
+    // Checked now (frame, field of view, resolution), so that a manifest fails before
+    // anything renders.
+    d.camera(Some([1, 1]))?;
+    Ok(d)
+}
+
+fn mesh_desc(m: &Spanned<MeshToml>, i: usize, src: &TomlSource, dir: &Path, dialect: Dialect) -> Result<MeshDesc> {
+    let at = format!("{}: [[{}mesh]] {}", src.at(m), dialect.prefix(), i + 1);
+    let mt = m.get_ref();
+    if dialect == Dialect::File {
+        not_in_file(src, "fit_height", &mt.fit_height)?;
+        not_in_file(src, "download", &mt.download)?;
+    }
+    let placement = Placement {
+        scale: mt.scale.as_ref().map_or(Vec3::ONE, |s| s.0),
+        rotate_y_deg: mt.rotate_y_deg.unwrap_or(0.0),
+        translate: Vec3::from_array(mt.translate.unwrap_or([0.0; 3])),
+    };
+    if !placement.scale.is_finite() || placement.scale.cmpeq(Vec3::ZERO).any() {
+        bail!("{at}: scale must be finite and non-zero, got {:?}", placement.scale.to_array());
+    }
+    if !placement.rotate_y_deg.is_finite() || !placement.translate.is_finite() {
+        bail!("{at}: rotate_y_deg and translate must be finite");
+    }
+    let fit_height = mt.fit_height.as_ref().map(|h| *h.get_ref());
+    if let Some(h) = fit_height {
+        if mt.scale.is_some() {
+            bail!("{at}: give `fit_height` or `scale`, not both");
+        }
+        if !(h.is_finite() && h > 0.0) {
+            bail!("{at}: fit_height must be finite and positive, got {h}");
+        }
+    }
+    let material = match &mt.material {
+        Some(o) => Some(override_material(o, &format!("{} (override)", mt.obj)).map_err(|e| anyhow!("{at}: material: {e}"))?),
+        None => None,
+    };
+    Ok(MeshDesc {
+        obj: dir.join(&mt.obj),
+        placement,
+        fit_height,
+        material,
+        download: mt.download.as_ref().map(|d| d.get_ref().clone()),
+        at,
+    })
+}
+
+impl MeshDesc {
+    /// Reads the OBJ and adds its triangles to `scene`.
+    fn add_to(&self, scene: &mut Scene) -> Result<()> {
+        let at = &self.at;
+        let ObjFile { mut mesh, warnings } = load_obj(&self.obj).map_err(|e| anyhow!("{at}: {e}"))?;
+        scene.warnings.extend(warnings);
+        let mut place = self.placement;
+        if place.scale.min_element() < 0.0 {
+            let mirrored = place.scale.x * place.scale.y * place.scale.z < 0.0;
+            scene.warnings.push(if mirrored {
+                format!("{at}: negative scale mirrors the mesh; its triangles' front sides flip with it (not corrected)")
+            } else {
+                format!("{at}: negative scale components (an even number: a rotation, not a mirror)")
+            });
+        }
+        if mesh.faces.is_empty() {
+            scene.warnings.push(format!("{at}: {} has no faces", self.obj.display()));
+            return Ok(());
+        }
+        if let Some(h) = self.fit_height {
+            // Bottom centre of the bounding box to the origin, then scale to height `h`.
+            let (lo, hi) = mesh
+                .positions
+                .iter()
+                .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(a, b), p| (a.min(*p), b.max(*p)));
+            let height = hi.y - lo.y;
+            if !(height > 0.0 && height.is_finite()) {
+                bail!("{at}: fit_height: {} is flat (zero height), it cannot be scaled to a height", self.obj.display());
+            }
+            let offset = Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
+            for p in &mut mesh.positions {
+                *p -= offset;
+            }
+            place.scale = Vec3::splat(h / height);
+        }
+        let before = scene.dropped_degenerate;
+        scene.add_mesh(&mesh, &place, self.material.as_ref()).map_err(|e| anyhow!("{at}: {}: {e}", self.obj.display()))?;
+        let dropped = scene.dropped_degenerate - before;
+        if dropped > 0 {
+            scene.warnings.push(format!("{at}: dropped {dropped} zero-area triangle(s) of {}", self.obj.display()));
+        }
+        Ok(())
+    }
+}
+
 /// Loads a scene file (TOML with OBJ/MTL meshes) following `scene-format.md`.
 ///
 /// Non-fatal remarks (undefined materials, negative scales, dropped zero-area
 /// triangles, ignored MTL statements) end up in `scene.warnings`.
 pub fn load_scene(path: &Path) -> Result<Scene> {
-    let file = path.display();
-    let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{file}: cannot read scene file: {e}"))?;
-    let doc: SceneToml = toml::from_str(&text).map_err(|e| {
-        let msg = e.message().replace('\n', " ");
-        match e.span() {
-            Some(s) => {
-                let (l, c) = line_col(&text, s.start);
-                anyhow!("{file}:{l}:{c}: {msg}")
-            }
-            None => anyhow!("{file}: {msg}"),
-        }
-    })?;
-    let loc = Locator { file: path, text: &text };
-    let dir = path.parent().unwrap_or(Path::new(""));
-
-    let c = doc.camera.get_ref();
-    let camera = Camera::new(
-        Vec3::from_array(c.eye),
-        Vec3::from_array(c.look_at),
-        Vec3::from_array(c.up),
-        c.fov_y_deg,
-        c.resolution[0],
-        c.resolution[1],
-    )
-    .map_err(|e| anyhow!("{}: [camera]: {e}", loc.at(&doc.camera)))?;
+    let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: cannot read scene file: {e}", path.display()))?;
+    let src = TomlSource { file: path, text: &text };
+    let doc = DeTable::parse(&text).map_err(|e| src.error(&e))?;
+    let value = Spanned::new(doc.span(), DeValue::Table(doc.into_inner()));
+    let desc = SceneDesc::from_toml(value, src, path.parent().unwrap_or(Path::new("")), Dialect::File)?;
     let name = path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
-    let mut scene = Scene::new(&name, camera);
+    let mut scene = desc.build(&name, None)?;
     scene.source = Some(path.to_path_buf());
-
-    for (i, m) in doc.mesh.iter().enumerate() {
-        let at = || format!("{}: [[mesh]] {}", loc.at(m), i + 1);
-        let mt = m.get_ref();
-        let place = Placement {
-            scale: mt.scale.as_ref().map_or(Vec3::ONE, |s| s.0),
-            rotate_y_deg: mt.rotate_y_deg.unwrap_or(0.0),
-            translate: Vec3::from_array(mt.translate.unwrap_or([0.0; 3])),
-        };
-        if !place.scale.is_finite() || place.scale.cmpeq(Vec3::ZERO).any() {
-            return Err(anyhow!("{}: scale must be finite and non-zero, got {:?}", at(), place.scale.to_array()));
-        }
-        if !place.rotate_y_deg.is_finite() || !place.translate.is_finite() {
-            return Err(anyhow!("{}: rotate_y_deg and translate must be finite", at()));
-        }
-        let obj_path: PathBuf = dir.join(&mt.obj);
-        let override_mat = match &mt.material {
-            Some(o) => Some(override_material(o, &format!("{} (override)", mt.obj)).map_err(|e| anyhow!("{}: material: {e}", at()))?),
-            None => None,
-        };
-        let ObjFile { mesh, warnings } = load_obj(&obj_path).map_err(|e| anyhow!("{}: {e}", at()))?;
-        scene.warnings.extend(warnings);
-        if place.scale.min_element() < 0.0 {
-            let mirrored = place.scale.x * place.scale.y * place.scale.z < 0.0;
-            scene.warnings.push(if mirrored {
-                format!("{}: negative scale mirrors the mesh; its triangles' front sides flip with it (not corrected)", at())
-            } else {
-                format!("{}: negative scale components (an even number: a rotation, not a mirror)", at())
-            });
-        }
-        if mesh.faces.is_empty() {
-            scene.warnings.push(format!("{}: {} has no faces", at(), obj_path.display()));
-            continue;
-        }
-        let before = scene.dropped_degenerate;
-        scene.add_mesh(&mesh, &place, override_mat.as_ref()).map_err(|e| anyhow!("{}: {}: {e}", at(), obj_path.display()))?;
-        let dropped = scene.dropped_degenerate - before;
-        if dropped > 0 {
-            scene.warnings.push(format!("{}: dropped {dropped} zero-area triangle(s) of {}", at(), obj_path.display()));
-        }
-    }
-    for (i, l) in doc.light.iter().enumerate() {
-        let d = light_desc(l.get_ref()).map_err(|e| anyhow!("{}: [[light]] {}: {e}", loc.at(l), i + 1))?;
-        scene.lights.push(d);
-    }
-    scene.validate().map_err(|e| anyhow!("{file}: {e}"))?;
     Ok(scene)
 }
 
@@ -346,5 +618,86 @@ mod tests {
         assert_eq!(g.bsdf, Bsdf::Glossy(Glossy { kd: Color::splat(0.5), ks: Color::ZERO, exponent: 1.0 }));
         assert!(toml::from_str::<OverrideToml>("type = \"glass\"\nshiny = 1").is_err());
         assert!(toml::from_str::<OverrideToml>("type = \"plastic\"").is_err());
+    }
+
+    /// Parses `text` as a whole document in `dialect`, the description's paths under `d/`.
+    fn desc(text: &str, dialect: Dialect) -> Result<SceneDesc> {
+        let src = TomlSource { file: Path::new("s.toml"), text };
+        let doc = DeTable::parse(text).map_err(|e| src.error(&e))?;
+        SceneDesc::from_toml(Spanned::new(doc.span(), DeValue::Table(doc.into_inner())), src, Path::new("d"), dialect)
+    }
+
+    const CAM: &str = "[camera]\neye = [0, 1, 4]\nlook_at = [0, 1, 0]\nfov_y_deg = 40\n";
+
+    #[test]
+    fn inline_extensions_are_read_and_rejected_in_files() {
+        let text = format!(
+            "builtin = \"cornell\"\n{CAM}[[mesh]]\nobj = \"m.obj\"\nfit_height = 2\ntranslate = [1, 0, 0]\ndownload = \"https://x\"\n\
+             material = {{ type = \"mirror\" }}\n[[light]]\ntype = \"spot\"\nposition = [0, 1, 0]\ndirection = [0, -1, 0]\n\
+             intensity = [1, 1, 1]\ncone_deg = 20\nfalloff_deg = 30\n"
+        );
+        let d = desc(&text, Dialect::Inline).unwrap();
+        assert_eq!(d.base, Some(SceneBase::Builtin("cornell".into())));
+        let c = d.camera.as_ref().unwrap();
+        assert_eq!((c.up, c.resolution, c.at.as_str()), (Vec3::Y, None, "s.toml:2: [scene.camera]"));
+        let m = &d.meshes[0];
+        assert_eq!((m.obj.as_path(), m.fit_height, m.download.as_deref()), (Path::new("d/m.obj"), Some(2.0), Some("https://x")));
+        assert_eq!(m.placement.translate, Vec3::X);
+        assert_eq!(m.material.as_ref().unwrap().bsdf, Bsdf::Mirror(Mirror { reflectance: Color::ONE }));
+        assert!(matches!(d.lights[0], LightDesc::Spot { cone_deg: 20.0, falloff_deg: 30.0, .. }));
+        // The same text as a scene file: the first extension is named with its line.
+        let e = format!("{:#}", desc(&text, Dialect::File).unwrap_err());
+        assert!(e.starts_with("s.toml:1:") && e.contains("`builtin`") && e.contains("manifest"), "{e}");
+        let e = format!("{:#}", desc(&text.replacen("builtin = \"cornell\"\n", "", 1), Dialect::File).unwrap_err());
+        assert!(e.starts_with("s.toml:1:") && e.contains("resolution"), "{e}");
+        let e = format!(
+            "{:#}",
+            desc(
+                &text.replacen("builtin = \"cornell\"\n", "", 1).replace("fov_y_deg = 40\n", "fov_y_deg = 40\nresolution = [4, 4]\n"),
+                Dialect::File
+            )
+            .unwrap_err()
+        );
+        assert!(e.starts_with("s.toml:8:") && e.contains("fit_height"), "{e}");
+    }
+
+    #[test]
+    fn inline_errors_name_the_line() {
+        let e = |t: &str| format!("{:#}", desc(t, Dialect::Inline).unwrap_err());
+        let x = e("[[mesh]]\nobj = \"m.obj\"\n");
+        assert!(x.starts_with("s.toml:1:") && x.contains("[scene.camera] is required"), "{x}");
+        let x = e(&format!("{CAM}[[mesh]]\nobj = \"m.obj\"\nalbedo = [1, 1, 1]\n"));
+        assert!(x.starts_with("s.toml:7:") && x.contains("albedo"), "{x}");
+        let x = e(&format!("{CAM}[[mesh]]\nobj = \"m.obj\"\nfit_height = 2\nscale = 3\n"));
+        assert!(x.starts_with("s.toml:5:") && x.contains("not both"), "{x}");
+        let x = e(&format!("{CAM}[[mesh]]\nobj = \"m.obj\"\nfit_height = -2\n"));
+        assert!(x.contains("fit_height must be finite and positive"), "{x}");
+        let x = e("builtin = \"cornel\"\n");
+        assert!(x.starts_with("s.toml:1:") && x.contains("known: cornell"), "{x}");
+        let x = e("builtin = \"cornell\"\nfile = \"a.toml\"\n");
+        assert!(x.contains("not both"), "{x}");
+        let x = e("builtin = \"cornell\"\n[[light]]\ntype = \"spot\"\nposition = [0, 1, 0]\n");
+        assert!(x.starts_with("s.toml:2:") && x.contains("direction"), "{x}");
+        let x = e(
+            "builtin = \"cornell\"\n[[light]]\ntype = \"spot\"\nposition = [0, 1, 0]\ndirection = [0, 0, 0]\nintensity = [1, 1, 1]\ncone_deg = 20\nfalloff_deg = 30\n",
+        );
+        assert!(x.starts_with("s.toml:2: [[scene.light]] 1") && x.contains("direction must not be zero"), "{x}");
+        let x = e("builtin = \"cornell\"\n[camera]\neye = [0, 1, 0]\nlook_at = [0, 1, 0]\nfov_y_deg = 40\n");
+        assert!(x.starts_with("s.toml:2: [scene.camera]") && x.contains("coincide"), "{x}");
+    }
+
+    #[test]
+    fn builds_on_a_builtin_base() {
+        let d = desc(
+            "builtin = \"cornell\"\n[[light]]\ntype = \"point\"\nposition = [278, 500, 280]\nintensity = [1, 1, 1]\n",
+            Dialect::Inline,
+        )
+        .unwrap();
+        let s = d.build("ignored", Some([8, 8])).unwrap();
+        let plain = builtin("cornell").unwrap();
+        assert_eq!((s.name.as_str(), s.triangles.len()), ("cornell", plain.triangles.len()));
+        assert_eq!(s.lights.len(), plain.lights.len() + 1);
+        // The base scene's camera is kept (resolution and all) when none is given.
+        assert_eq!(format!("{:?}", s.camera), format!("{:?}", plain.camera));
     }
 }
