@@ -631,7 +631,8 @@ mod tests {
         assert!(e.contains("2..4.psum") && e.contains("another scene"), "{e}");
         assert!(check_range(&cfg("sppm", 4, 8), SampleRange { start: 0, end: 2 }).is_err());
         // Round trip, then a truncated file.
-        let dir = std::env::temp_dir().join(format!("photonlab-psum-{}", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let p = dir.join("a.psum");
         ps[0].1.write(&p).unwrap();
         assert_eq!(Part::read(&dir.join("a.exr")).unwrap(), ps[0].1);
@@ -639,7 +640,6 @@ mod tests {
         std::fs::write(&p, &bytes[..bytes.len() - 5]).unwrap();
         let e = format!("{:#}", Part::read(&p).unwrap_err());
         assert!(e.contains("a.psum") && e.contains("bytes of sums"), "{e}");
-        std::fs::remove_dir_all(dir).ok();
         // Gaps left by the parts present.
         let (chain, gaps) = cover(10, &[ps[1].clone()]);
         assert_eq!(chain.len(), 1);

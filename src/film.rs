@@ -152,14 +152,14 @@ mod tests {
 
     #[test]
     fn exr_round_trip() {
-        let dir = std::env::temp_dir().join(format!("photonlab-film-{}", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let mut f = Film::new(3, 2);
         f.pixels[4] = Color::new(1.5, 0.25, 100.0);
         let (exr, png) = f.write_pair(&dir.join("t.exr")).unwrap();
         let g = Film::read_exr(&exr).unwrap();
         assert_eq!(f, g);
         assert!(png.exists());
-        std::fs::remove_dir_all(dir).ok();
     }
 
     /// The chunk offset table of a single-part scan-line or tiled EXR written by
@@ -180,7 +180,8 @@ mod tests {
 
     #[test]
     fn exr_bytes_are_reproducible_and_chunks_in_order() {
-        let dir = std::env::temp_dir().join(format!("photonlab-film-bytes-{}", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         // 5 × 4 tiles of 64 px, noisy so compression time varies between tiles.
         let mut f = Film::new(300, 200);
         let mut s = 1u32;
@@ -202,6 +203,5 @@ mod tests {
             prev = Some(bytes);
         }
         assert_eq!(Film::read_exr(&dir.join("t0.exr")).unwrap(), f);
-        std::fs::remove_dir_all(dir).ok();
     }
 }

@@ -253,7 +253,8 @@ mod tests {
 
     #[test]
     fn writes_png_and_svg() {
-        let dir = std::env::temp_dir().join(format!("photonlab-plot-{}", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let plot = LinePlot {
             title: "t".into(),
             x_label: "x (s)".into(),
@@ -272,6 +273,5 @@ mod tests {
             layers: vec![("bias²".into(), vec![1.0, 2.0]), ("variance".into(), vec![0.5, 0.1])],
         };
         bar_plot(&dir.join("bars"), &bars).unwrap();
-        std::fs::remove_dir_all(dir).ok();
     }
 }

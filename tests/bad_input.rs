@@ -5,26 +5,18 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// A fresh, empty temporary directory for one test, removed when dropped.
-struct Tmp(PathBuf);
-
-impl Drop for Tmp {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+/// A temporary folder (the `tempfile` crate), removed when dropped.
+struct Tmp(tempfile::TempDir);
 
 impl std::ops::Deref for Tmp {
     type Target = Path;
     fn deref(&self) -> &Path {
-        &self.0
+        self.0.path()
     }
 }
 
 fn tmp(tag: &str) -> Tmp {
-    let d = std::env::temp_dir().join(format!("photonlab-bad-input-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    Tmp(d)
+    Tmp(tempfile::Builder::new().prefix(&format!("photonlab-bad-input-{tag}-")).tempdir().unwrap())
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {

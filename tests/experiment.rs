@@ -7,12 +7,9 @@ use photonlab::experiment::{RunArgs, RunReport, Shard, run};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// A fresh directory for one test.
+/// A fresh directory for one test (kept: tests inspect it; the OS cleans /tmp).
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("photonlab-exp-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    tempfile::Builder::new().prefix(&format!("photonlab-exp-test-{name}-")).tempdir().unwrap().keep()
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {

@@ -8,7 +8,8 @@ use std::path::Path;
 
 #[test]
 fn mutated_inputs_never_panic() {
-    let out = std::env::temp_dir().join(format!("photonlab-fuzz-smoke-{}", std::process::id()));
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().to_path_buf();
     let r = fuzz(&FuzzArgs { inputs: 4000, seed: 7, corpus: vec![], out: out.clone(), timeout: 60 }).unwrap();
     assert_eq!(r.inputs, 4000);
     assert!(r.panics.is_empty(), "panics: {:?}", r.panics);

@@ -36,9 +36,8 @@ fn direct_indirect_and_caustic_add_up_to_the_image() {
 
 #[test]
 fn a_manifest_measures_one_component() {
-    let d = std::env::temp_dir().join(format!("photonlab-component-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
     let text = r#"
 scene = "cornell"
 resolution = [24, 24]
@@ -81,7 +80,7 @@ gather = "direct"
     assert!(col("comp_relmse").parse::<f64>().unwrap() > 0.0);
     // A component nothing renders is a clear error naming the line.
     let bad = text.replace("component = \"indirect\"", "component = \"glossy\"");
-    let e = Manifest::parse(&bad, Path::new("c.toml"), &d).unwrap_err().to_string();
+    let e = Manifest::parse(&bad, Path::new("c.toml"), d).unwrap_err().to_string();
     assert!(e.contains("c.toml:4") && e.contains("glossy"), "{e}");
     std::fs::remove_dir_all(d).ok();
 }

@@ -96,8 +96,8 @@ fn old_flags_are_aliases_of_set() {
 /// a parameter of a plug-in that is not chosen fails, naming its owner.
 #[test]
 fn flags_and_set_render_the_same_image() {
-    let dir = std::env::temp_dir().join(format!("photonlab-plugin-flags-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let common = ["render", "--quiet", "--resolution", "16x16", "--spp", "1", "--integrator", "photon"];
     let a = dir.join("a.exr");
     let b = dir.join("b.exr");
@@ -125,5 +125,4 @@ fn flags_and_set_render_the_same_image() {
     let out = photonlab(&bad);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("ic_tolerance") && err.contains("irradiance_cache"), "{err}");
-    std::fs::remove_dir_all(&dir).ok();
 }

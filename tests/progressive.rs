@@ -106,7 +106,8 @@ fn time_limit_stops_after_the_pass_that_crosses_it() {
 /// The runner records the error after the chosen passes as a curve.
 #[test]
 fn runner_records_the_error_after_chosen_passes() {
-    let dir = std::env::temp_dir().join(format!("photonlab-progressive-{}", std::process::id()));
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().to_path_buf();
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let m = dir.join("m.toml");
@@ -160,7 +161,7 @@ fn bad_settings_are_clear_errors() {
     ] {
         let o = Command::new(env!("CARGO_BIN_EXE_photonlab"))
             .args(["render", "--resolution", "4x4", "--quiet", "-o"])
-            .arg(std::env::temp_dir().join(format!("photonlab-bad-progressive-{}.exr", std::process::id())))
+            .arg(tempfile::tempdir().unwrap().path().join("bad.exr"))
             .args(args)
             .output()
             .unwrap();
@@ -174,9 +175,8 @@ fn bad_settings_are_clear_errors() {
 /// bit for bit; a checkpoint of another configuration is refused.
 #[test]
 fn resume_from_a_checkpoint_is_bit_identical() {
-    let dir = std::env::temp_dir().join(format!("photonlab-resume-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().to_path_buf();
     let render = |integrator: &str, out: &str, extra: &[&str]| {
         let o = Command::new(env!("CARGO_BIN_EXE_photonlab"))
             .args(["render", "--builtin", "cornell-glass", "--resolution", "12x12", "--quiet", "--photons-per-pass", "3000"])

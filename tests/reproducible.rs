@@ -65,8 +65,8 @@ fn stable_csv(path: &Path) -> Vec<Vec<String>> {
 
 #[test]
 fn one_and_two_threads_write_identical_bytes() {
-    let root = std::env::temp_dir().join(format!("photonlab-repro-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&root);
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
     let mut outs = Vec::new();
     for threads in [1, 2] {
         let d = root.join(format!("t{threads}"));

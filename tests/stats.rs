@@ -91,10 +91,11 @@ fn deterministic_across_thread_counts() {
 /// as expected.
 #[test]
 fn command_writes_report() {
-    let dir = std::env::temp_dir().join(format!("photonlab-stats-{}", std::process::id()));
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_photonlab"))
         .args(["stats", "convergence", "--threads", "2", "--out"])
-        .arg(&dir)
+        .arg(dir)
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -105,7 +106,6 @@ fn command_writes_report() {
     assert!(dir.join("convergence_path.png").exists() && dir.join("convergence_photon.svg").exists());
     let bad = std::process::Command::new(env!("CARGO_BIN_EXE_photonlab")).args(["stats", "nonsense"]).output().unwrap();
     assert!(!bad.status.success());
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

@@ -331,8 +331,13 @@ impl Manifest {
             // A [base] key (not overridden here) only has to be used by some configuration.
             let from_base = |k: &str| base.iter().any(|(b, _)| b == k) && !own.iter().any(|(o, _)| o == k);
             let checked = registry::validate_allowing(&cfg, &from_base);
+            let mut cfg = cfg;
             if let Ok(unused) = &checked {
                 never_used.retain(|k| unused.contains(k));
+                // The configuration keeps only the [base] keys its plug-ins read.
+                for k in unused {
+                    cfg.params.remove(k);
+                }
             }
             if let Err(e) = checked {
                 // Blame the first swept value that is invalid on its own over the base,

@@ -439,10 +439,8 @@ mod tests {
         lib.entries.iter().map(|(n, e)| mtl_to_material(n, e)).collect()
     }
 
-    fn tmpdir(tag: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("photonlab-obj-{tag}-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn tmpdir(tag: &str) -> tempfile::TempDir {
+        tempfile::Builder::new().prefix(&format!("photonlab-obj-{tag}-")).tempdir().unwrap()
     }
 
     #[test]
@@ -484,7 +482,8 @@ mod tests {
 
     #[test]
     fn obj_faces_indices_and_materials() {
-        let d = tmpdir("faces");
+        let tmp = tmpdir("faces");
+        let d = tmp.path();
         std::fs::write(d.join("m.mtl"), "newmtl red\nKd 1 0 0\n").unwrap();
         let text = "# quad with relative indices\r\nmtllib m.mtl\r\nv 0 0 0 1\r\nv 1 0 0\r\nv 1 1 0\r\nv 0 1 0 0.5 0.5 0.5\r\n\
                     vn 0 0 1\r\nf -4 -3 -2 -1\r\nusemtl red\r\nf 1//1 2//1 3//1\r\nusemtl nothing\r\nf 1/1 2/1 3/1\r\n";
@@ -502,7 +501,6 @@ mod tests {
         assert_eq!(m.materials[m.faces[3].material as usize], default_material("nothing"));
         assert_eq!(o.warnings.len(), 1, "{:?}", o.warnings);
         assert!(o.warnings[0].contains(":11:"), "{:?}", o.warnings);
-        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]
@@ -527,7 +525,8 @@ mod tests {
 
     #[test]
     fn agrees_with_tobj_on_geometry() {
-        let d = tmpdir("tobj");
+        let tmp = tmpdir("tobj");
+        let d = tmp.path();
         let text = "v 0 0 0\nv 2 0 0\nv 2 1 0\nv 0 1 0\nv 1 2 0\nf 1 2 3 4\nf -5 -3 -1\nf 4 3 5\n";
         let path = d.join("x.obj");
         std::fs::write(&path, text).unwrap();
@@ -539,6 +538,5 @@ mod tests {
         assert_eq!(idx, ours_idx);
         let pos: Vec<f32> = ours.positions.iter().flat_map(|p| p.to_array()).collect();
         assert_eq!(models[0].mesh.positions, pos);
-        let _ = std::fs::remove_dir_all(&d);
     }
 }
