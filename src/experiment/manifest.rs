@@ -9,9 +9,9 @@
 //! ([`registry::validate`]) before anything renders; errors name `file:line`.
 
 use crate::config::RenderConfig;
-use crate::light::LightDesc;
 use crate::math::Color;
 use crate::registry;
+use crate::scene::LightDesc;
 use crate::scene::obj::load_obj;
 use crate::scene::{Placement, Scene, builtin::builtin, loader::load_scene};
 use anyhow::{Result, anyhow, bail};

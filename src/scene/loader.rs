@@ -19,9 +19,9 @@
 use super::obj::{ObjFile, load_obj};
 use super::{Placement, Scene, unit_or_zero};
 use crate::camera::Camera;
-use crate::light::LightDesc;
 use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Material, Mirror};
 use crate::math::Color;
+use crate::scene::LightDesc;
 use anyhow::{Result, anyhow};
 use glam::Vec3;
 use serde::Deserialize;
