@@ -490,7 +490,7 @@ fn inline_scene_with_a_spot_light_and_a_material_override_renders() {
     let m = Manifest::load(&p).unwrap();
     let s = m.scenes[0].load(m.resolution).unwrap();
     assert_eq!((s.camera.width, s.camera.height), (12, 12));
-    assert!(matches!(s.lights[0], photonlab::light::LightDesc::Spot { cone_deg: 25.0, falloff_deg: 35.0, .. }), "{:?}", s.lights);
+    assert!(matches!(s.lights[0], photonlab::scene::LightDesc::Spot { cone_deg: 25.0, falloff_deg: 35.0, .. }), "{:?}", s.lights);
     let glossy = s.material(s.triangles.len() as u32 - 1);
     assert!(matches!(glossy.bsdf, photonlab::material::Bsdf::Glossy(_)), "{glossy:?}");
     let r = run_into(&p, &d.join("out"), None, false);

@@ -93,8 +93,8 @@ fn cornell_colour_bleeding() {
 #[test]
 fn trapped_paths_end_at_the_safety_cap() {
     use photonlab::config::SAFETY_MAX_DEPTH;
-    use photonlab::light::LightDesc;
     use photonlab::material::{Bsdf, Mirror};
+    use photonlab::scene::LightDesc;
     for rr in ["throughput", "albedo"] {
         let mut s = furnace(0.5, 0.0, 8);
         for m in &mut s.materials {

@@ -3,13 +3,13 @@
 
 use glam::Vec3;
 use photonlab::camera::Camera;
-use photonlab::light::{LightDesc, LightSet};
+use photonlab::light::LightSet;
 use photonlab::material::{Bsdf, Dielectric, Glossy, Lambertian, Material, Mirror};
 use photonlab::math::Color;
 use photonlab::scene::builtin::{cornell, furnace};
 use photonlab::scene::export::export_scene;
 use photonlab::scene::loader::load_scene;
-use photonlab::scene::{Face, MeshData, NO_NORMALS, Placement, Scene};
+use photonlab::scene::{Face, LightDesc, MeshData, NO_NORMALS, Placement, Scene};
 use std::path::{Path, PathBuf};
 
 /// A fresh, empty temporary directory for one test, removed when dropped.

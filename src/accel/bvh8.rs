@@ -1,5 +1,5 @@
-//! `bvh8`: the wide BVH of [`super::bvh4`] with 8 children per node (one AVX2
+//! `bvh8`: the wide BVH of [`super::wide`] with 8 children per node (one AVX2
 //! register per box plane).
 
 /// 8-wide BVH (`bvh8`).
-pub type Bvh8 = super::bvh4::WideBvh<8>;
+pub type Bvh8 = super::wide::WideBvh<8>;

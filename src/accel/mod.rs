@@ -1,5 +1,5 @@
 //! Ray-scene intersection structures (plug-ins chosen by name: `none`, `bvh`,
-//! `bvh4`, `bvh8`, `bvh8q`).
+//! `bvh4`, `bvh8`, `bvh8q`; the last three are configurations of [`wide`]).
 //!
 //! Every implementation uses [`crate::geometry::intersect_triangle`] on the same
 //! precomputed (v0, e1, e2) data, so all return the same closest hit.
@@ -10,6 +10,7 @@ pub mod bvh8;
 pub mod bvh8q;
 pub mod linear;
 mod sbvh;
+pub mod wide;
 
 use crate::geometry::{Hit, Ray};
 use glam::Vec3;

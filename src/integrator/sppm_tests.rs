@@ -1,9 +1,9 @@
 use super::*;
 use crate::camera::Camera;
-use crate::light::LightDesc;
 use crate::material::Material;
 use crate::param::Reader;
 use crate::registry::{make_accel, make_rr};
+use crate::scene::LightDesc;
 use crate::scene::{Face, MeshData, Placement, Scene};
 
 #[test]

@@ -11,42 +11,9 @@ pub use spot::spot_falloff;
 
 use crate::geometry::Aabb;
 use crate::math::{Color, mean};
-use crate::scene::Scene;
+use crate::scene::{LightDesc, Scene};
 use glam::Vec3;
 use std::f32::consts::PI;
-
-/// A non-geometric light as described in the scene file.
-#[derive(Clone, Debug, PartialEq)]
-pub enum LightDesc {
-    /// Isotropic point light; intensity in W/sr.
-    Point {
-        /// Position.
-        position: Vec3,
-        /// Radiant intensity.
-        intensity: Color,
-    },
-    /// Spot light: full intensity inside `cone_deg`, falling linearly in angle to zero at
-    /// `falloff_deg`.
-    Spot {
-        /// Position.
-        position: Vec3,
-        /// Unit axis.
-        direction: Vec3,
-        /// Radiant intensity on the axis.
-        intensity: Color,
-        /// Full-power half angle (degrees).
-        cone_deg: f32,
-        /// Outer half angle (degrees).
-        falloff_deg: f32,
-    },
-    /// Distant light; `direction` is the direction light travels.
-    Directional {
-        /// Unit travel direction.
-        direction: Vec3,
-        /// Irradiance on a surface facing the light (W/m²).
-        irradiance: Color,
-    },
-}
 
 /// A light ready for sampling.
 #[derive(Clone, Debug)]

@@ -2,9 +2,9 @@
 //! unit direction and power Φ/p (the light's share of the total is applied by the
 //! caller through the selection probability).
 
-use crate::light::{Light, LightDesc, LightSet, spot_falloff};
+use crate::light::{Light, LightSet, spot_falloff};
 use crate::math::{Color, Frame, concentric_disc, cosine_hemisphere, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle};
-use crate::scene::Scene;
+use crate::scene::{LightDesc, Scene};
 use glam::Vec3;
 use std::f32::consts::PI;
 

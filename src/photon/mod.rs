@@ -340,9 +340,9 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
 mod tests {
     use super::*;
     use crate::camera::Camera;
-    use crate::light::LightDesc;
     use crate::material::{Bsdf, Material, Mirror};
     use crate::registry::{make_accel, make_rr, make_sampler};
+    use crate::scene::LightDesc;
     use crate::scene::{Face, MeshData, Placement, Scene};
 
     /// A point light between a mirror floor (y = 0) and a white ceiling (y = 2):

@@ -304,7 +304,7 @@ pub fn displaced_sphere(n: u32) -> Scene {
     let cam = Camera::new(Vec3::new(0.0, 0.6, 3.2), Vec3::ZERO, Vec3::Y, 45.0, 256, 256).expect("valid camera");
     let mut s = Scene::new("displaced-sphere", cam);
     s.add_mesh(&m, &Placement::default(), None).expect("sphere geometry is valid");
-    s.lights.push(crate::light::LightDesc::Point { position: Vec3::new(2.0, 4.0, 3.0), intensity: Color::splat(30.0) });
+    s.lights.push(super::LightDesc::Point { position: Vec3::new(2.0, 4.0, 3.0), intensity: Color::splat(30.0) });
     s
 }
 

@@ -16,8 +16,8 @@
 //! * MTL material names are the scene's, with whitespace and `#` replaced by `_` and a
 //!   `-N` suffix where two different materials share a name.
 
+use super::LightDesc;
 use super::{NO_NORMALS, Scene};
-use crate::light::LightDesc;
 use crate::material::{Bsdf, Material};
 use anyhow::{Context, Result, bail};
 use glam::Vec3;

@@ -9,8 +9,8 @@ pub mod obj;
 
 use crate::camera::Camera;
 use crate::geometry::Aabb;
-use crate::light::LightDesc;
 use crate::material::Material;
+use crate::math::Color;
 use glam::Vec3;
 use std::path::PathBuf;
 
@@ -82,6 +82,39 @@ impl Placement {
 /// exported and re-loaded scene then has identical normals and light directions.
 pub fn unit_or_zero(v: Vec3) -> Vec3 {
     if (v.length_squared() - 1.0).abs() <= 4.0 * f32::EPSILON { v } else { v.normalize_or_zero() }
+}
+
+/// A non-geometric light as described in the scene file.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LightDesc {
+    /// Isotropic point light; intensity in W/sr.
+    Point {
+        /// Position.
+        position: Vec3,
+        /// Radiant intensity.
+        intensity: Color,
+    },
+    /// Spot light: full intensity inside `cone_deg`, falling linearly in angle to zero at
+    /// `falloff_deg`.
+    Spot {
+        /// Position.
+        position: Vec3,
+        /// Unit axis.
+        direction: Vec3,
+        /// Radiant intensity on the axis.
+        intensity: Color,
+        /// Full-power half angle (degrees).
+        cone_deg: f32,
+        /// Outer half angle (degrees).
+        falloff_deg: f32,
+    },
+    /// Distant light; `direction` is the direction light travels.
+    Directional {
+        /// Unit travel direction.
+        direction: Vec3,
+        /// Irradiance on a surface facing the light (W/m²).
+        irradiance: Color,
+    },
 }
 
 /// A renderable scene.

@@ -11,14 +11,14 @@
 //! Planted controls test correct samples against a wrong pdf; they must fail.
 
 use super::{FamilyReport, Outcome, Settings, TestRow, sidak};
-use crate::light::{LightDesc, LightSet};
+use crate::light::LightSet;
 use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Material, Mirror, ShadingPoint, TransportMode};
 use crate::math::{Color, Frame, cosine_hemisphere, cosine_hemisphere_pdf, reflect};
 use crate::photon::emit::emit_photon;
 use crate::plot::{LinePlot, Series};
 use crate::sampler::Sampler;
 use crate::sampler::random::RandomSampler;
-use crate::scene::{Face, MeshData, Placement, Scene};
+use crate::scene::{Face, LightDesc, MeshData, Placement, Scene};
 use anyhow::Result;
 use glam::Vec3;
 use rayon::prelude::*;
