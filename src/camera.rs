@@ -27,30 +27,30 @@ pub struct Camera {
 
 impl Camera {
     /// Builds a camera; fails on a degenerate frame, field of view or resolution.
-    pub fn new(eye: Vec3, look_at: Vec3, up: Vec3, fov_y_deg: f32, width: u32, height: u32) -> Result<Self, String> {
+    pub fn new(eye: Vec3, look_at: Vec3, up: Vec3, fov_y_deg: f32, width: u32, height: u32) -> anyhow::Result<Self> {
         if !(eye.is_finite() && look_at.is_finite() && up.is_finite()) {
-            return Err("camera eye, look_at and up must be finite".into());
+            return Err(anyhow::anyhow!("camera eye, look_at and up must be finite"));
         }
         if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
-            return Err(format!("camera fov_y_deg must be in (0, 180), got {fov_y_deg}"));
+            return Err(anyhow::anyhow!("camera fov_y_deg must be in (0, 180), got {fov_y_deg}"));
         }
         if width == 0 || height == 0 {
-            return Err(format!("camera resolution must be positive, got {width}x{height}"));
+            return Err(anyhow::anyhow!("camera resolution must be positive, got {width}x{height}"));
         }
         let forward = (look_at - eye).normalize_or_zero();
         if forward == Vec3::ZERO {
-            return Err("camera eye and look_at coincide".into());
+            return Err(anyhow::anyhow!("camera eye and look_at coincide"));
         }
         let right = forward.cross(up).normalize_or_zero();
         if right == Vec3::ZERO {
-            return Err("camera up is zero or parallel to the viewing direction".into());
+            return Err(anyhow::anyhow!("camera up is zero or parallel to the viewing direction"));
         }
         let up_img = right.cross(forward);
         Ok(Camera { eye, look_at, up, fov_y_deg, width, height, forward, right, up_img, tan_half: (fov_y_deg.to_radians() * 0.5).tan() })
     }
 
     /// Same camera at another resolution.
-    pub fn with_resolution(&self, width: u32, height: u32) -> Result<Self, String> {
+    pub fn with_resolution(&self, width: u32, height: u32) -> anyhow::Result<Self> {
         Camera::new(self.eye, self.look_at, self.up, self.fov_y_deg, width, height)
     }
 

@@ -160,7 +160,7 @@ impl RenderArgs {
             c.threads = v;
         }
         if let Some(r) = &self.resolution {
-            c.resolution = Some(parse_resolution(r).map_err(anyhow::Error::msg)?);
+            c.resolution = Some(parse_resolution(r)?);
         }
         let cat = crate::registry::catalogue();
         for kv in &self.set {

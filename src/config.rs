@@ -68,16 +68,16 @@ pub struct Resolution(pub [u32; 2]);
 
 impl ParamValue for Resolution {
     const TYPE: &'static str = "WxH";
-    fn from_toml(v: &toml::Value) -> Result<Self, String> {
-        let a = v.as_array().filter(|a| a.len() == 2).ok_or_else(|| "expected [width, height]".to_string())?;
+    fn from_toml(v: &toml::Value) -> anyhow::Result<Self> {
+        let a = v.as_array().filter(|a| a.len() == 2).ok_or_else(|| anyhow::anyhow!("expected [width, height]"))?;
         let w = u32::from_toml(&a[0])?;
         let h = u32::from_toml(&a[1])?;
         if w == 0 || h == 0 {
-            return Err(format!("resolution must be positive, got {w}x{h}"));
+            return Err(anyhow::anyhow!("resolution must be positive, got {w}x{h}"));
         }
         Ok(Resolution([w, h]))
     }
-    fn from_text(s: &str) -> Result<Self, String> {
+    fn from_text(s: &str) -> anyhow::Result<Self> {
         parse_resolution(s).map(Resolution)
     }
     fn to_toml(&self) -> Option<toml::Value> {
@@ -180,12 +180,12 @@ impl StrategySpec {
 }
 
 /// Parses "WxH".
-pub fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("resolution `{s}` is not WIDTHxHEIGHT"))?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("resolution `{s}`: bad width"))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("resolution `{s}`: bad height"))?;
+pub fn parse_resolution(s: &str) -> anyhow::Result<[u32; 2]> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| anyhow::anyhow!("resolution `{s}` is not WIDTHxHEIGHT"))?;
+    let w: u32 = w.trim().parse().map_err(|_| anyhow::anyhow!("resolution `{s}`: bad width"))?;
+    let h: u32 = h.trim().parse().map_err(|_| anyhow::anyhow!("resolution `{s}`: bad height"))?;
     if w == 0 || h == 0 {
-        return Err(format!("resolution `{s}` must be positive"));
+        return Err(anyhow::anyhow!("resolution `{s}` must be positive"));
     }
     Ok([w, h])
 }

@@ -170,6 +170,31 @@ pub fn u32_to_unit(x: u32) -> f32 {
 /// The largest f32 strictly below 1.
 pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
+/// 64-bit FNV-1a, stable across platforms and compiler versions (cache keys).
+#[derive(Clone, Copy)]
+pub struct Fnv(pub u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv {
+    /// Adds bytes.
+    pub fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 ^= *b as u64;
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    /// Adds a length-prefixed string (so concatenations cannot collide).
+    pub fn str(&mut self, s: &str) {
+        self.write(&(s.len() as u64).to_le_bytes());
+        self.write(s.as_bytes());
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -127,7 +127,7 @@ pub struct Prepared {
 pub fn configured_scene(mut scene: Scene, cfg: &RenderConfig) -> Result<Scene> {
     registry::validate(cfg)?;
     if let Some([w, h]) = cfg.resolution {
-        scene.camera = scene.camera.with_resolution(w, h).map_err(anyhow::Error::msg)?;
+        scene.camera = scene.camera.with_resolution(w, h)?;
     }
     Ok(scene)
 }
@@ -139,7 +139,7 @@ pub fn prepare(scene: Scene, cfg: &RenderConfig, quiet: bool) -> Result<Prepared
     let accel = registry::make_accel(&cfg.accel, &scene.triangles)?;
     let accel_build_s = t0.elapsed().as_secs_f64();
     let accel_bytes = accel.memory_bytes();
-    let world = World::new(scene, accel).map_err(anyhow::Error::msg)?;
+    let world = World::new(scene, accel)?;
     let mut integrator = registry::make_integrator_with(cfg, quiet)?;
     let sampler = registry::make_sampler(&cfg.sampler, cfg.seed, Some(cfg.spp as u64))?;
     let t1 = Instant::now();

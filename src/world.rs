@@ -35,7 +35,7 @@ pub struct Interaction {
 
 impl World {
     /// Bundles a scene with an accelerator; builds the light set.
-    pub fn new(scene: Scene, accel: Box<dyn Accel>) -> Result<Self, String> {
+    pub fn new(scene: Scene, accel: Box<dyn Accel>) -> anyhow::Result<Self> {
         scene.validate()?;
         let lights = LightSet::build(&scene)?;
         Ok(World { scene, accel, lights })

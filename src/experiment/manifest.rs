@@ -174,27 +174,27 @@ fn check_component(c: &Spanned<String>, loc: &Loc, configs: &[(String, RenderCon
 /// Checks one key/value pair: a common key of [`RenderConfig`] or a parameter some
 /// plug-in declares, with the declared type (whether the chosen plug-ins use it is
 /// checked when the configuration is validated).
-fn check_key(key: &str, value: &Value) -> Result<(), String> {
+fn check_key(key: &str, value: &Value) -> anyhow::Result<()> {
     if TOP_LEVEL_ONLY.contains(&key) {
-        return Err(format!("`{key}` is set once at the top level of the manifest, not per configuration"));
+        return Err(anyhow::anyhow!("`{key}` is set once at the top level of the manifest, not per configuration"));
     }
     let cat = crate::registry::catalogue();
-    let def = cat.find(key).ok_or_else(|| format!("unknown key `{key}` (`photonlab plugins` lists every parameter)"))?;
-    (def.check)(value).map_err(|e| format!("`{key}`: {e}"))?;
+    let def = cat.find(key).ok_or_else(|| anyhow::anyhow!("unknown key `{key}` (`photonlab plugins` lists every parameter)"))?;
+    (def.check)(value).map_err(|e| anyhow::anyhow!("`{key}`: {e}"))?;
     let mut t = toml::Table::new();
     t.insert(key.to_string(), value.clone());
-    t.try_into::<RenderConfig>().map(|_| ()).map_err(|e| e.message().replace('\n', " "))
+    t.try_into::<RenderConfig>().map(|_| ()).map_err(|e| anyhow::anyhow!(e.message().replace('\n', " ")))
 }
 
 /// Builds a configuration from layers of key/values (later layers win).
-fn build_config(layers: &[&[(String, Value)]]) -> Result<RenderConfig, String> {
+fn build_config(layers: &[&[(String, Value)]]) -> anyhow::Result<RenderConfig> {
     let mut t = toml::Table::new();
     for layer in layers {
         for (k, v) in *layer {
             t.insert(k.clone(), v.clone());
         }
     }
-    t.try_into::<RenderConfig>().map_err(|e| e.message().replace('\n', " "))
+    t.try_into::<RenderConfig>().map_err(|e| anyhow::anyhow!(e.message().replace('\n', " ")))
 }
 
 /// One configuration before repeats: its key/values, label and where it was written.

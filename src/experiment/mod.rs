@@ -21,6 +21,7 @@ pub mod scene_spec;
 pub mod summary;
 
 use crate::film::{Film, write_atomic};
+use crate::math::Fnv;
 use crate::scene::Scene;
 use anyhow::{Context, Result, anyhow, bail};
 use cell::{CellPaths, bias_variance, finished, run_cell};
@@ -145,62 +146,6 @@ pub struct RefInfo {
     pub component_noise_relmse: Option<f64>,
 }
 
-/// 64-bit FNV-1a, stable across platforms and compiler versions (cache keys).
-#[derive(Clone, Copy)]
-pub struct Fnv(pub u64);
-
-impl Default for Fnv {
-    fn default() -> Self {
-        Fnv(0xcbf2_9ce4_8422_2325)
-    }
-}
-
-impl Fnv {
-    /// Adds bytes.
-    pub fn write(&mut self, bytes: &[u8]) {
-        for b in bytes {
-            self.0 ^= *b as u64;
-            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-    /// Adds a length-prefixed string (so concatenations cannot collide).
-    pub fn str(&mut self, s: &str) {
-        self.write(&(s.len() as u64).to_le_bytes());
-        self.write(s.as_bytes());
-    }
-}
-
-/// Hash of everything in a scene that affects an image: geometry, normals,
-/// materials, lights and camera.
-pub fn scene_fingerprint(scene: &Scene) -> u64 {
-    let mut h = Fnv::default();
-    for t in &scene.triangles {
-        for v in t {
-            for c in v.to_array() {
-                h.write(&c.to_bits().to_le_bytes());
-            }
-        }
-    }
-    for m in &scene.tri_material {
-        h.write(&m.to_le_bytes());
-    }
-    for n in &scene.tri_normals {
-        h.write(&n.to_le_bytes());
-    }
-    for ns in &scene.normals {
-        for v in ns {
-            for c in v.to_array() {
-                h.write(&c.to_bits().to_le_bytes());
-            }
-        }
-    }
-    // Debug output of floats is exact (shortest round-trip), so it is a faithful key.
-    h.str(&format!("{:?}", scene.materials));
-    h.str(&format!("{:?}", scene.lights));
-    h.str(&format!("{:?}", scene.camera));
-    h.0
-}
-
 /// The cache key of a rendered reference: photonlab version, scene and configuration
 /// (without the thread count, which does not change images).
 pub fn reference_key(scene: &Scene, cfg: &crate::config::RenderConfig) -> Result<String> {
@@ -209,7 +154,7 @@ pub fn reference_key(scene: &Scene, cfg: &crate::config::RenderConfig) -> Result
     let mut h = Fnv::default();
     h.str("photonlab-reference-v2"); // v2: references are exact sums (src/accumulate.rs)
     h.str(env!("CARGO_PKG_VERSION"));
-    h.write(&scene_fingerprint(scene).to_le_bytes());
+    h.write(&scene.fingerprint().to_le_bytes());
     h.str(&toml::to_string(&c)?);
     Ok(format!("{:016x}", h.0))
 }

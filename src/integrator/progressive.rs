@@ -104,7 +104,7 @@ fn checkpoint_key(cfg: &RenderConfig, world: &crate::world::World) -> Result<Str
     }
     let text = toml::to_string(&c)?;
     let words: Vec<u64> = text.bytes().map(u64::from).collect();
-    let scene = crate::experiment::scene_fingerprint(&world.scene);
+    let scene = world.scene.fingerprint();
     Ok(format!("{:016x}{scene:016x}", crate::math::hash_words(&words)))
 }
 

@@ -128,7 +128,7 @@ pub struct LightSet {
 
 impl LightSet {
     /// Collects emissive triangles and the scene's lights. Fails when nothing emits.
-    pub fn build(scene: &Scene) -> Result<Self, String> {
+    pub fn build(scene: &Scene) -> anyhow::Result<Self> {
         let bounds: Aabb = scene.bounds;
         let scene_center = bounds.center();
         let scene_radius = (0.5 * bounds.diagonal().length()).max(1e-6);
@@ -148,7 +148,7 @@ impl LightSet {
         }
         lights.extend(scene.lights.iter().cloned().map(Light::Desc));
         let powers: Vec<f32> = lights.iter().map(|l| l.power(scene_radius)).collect();
-        let distribution = Distribution1D::new(&powers).ok_or("scene has no light with positive power")?;
+        let distribution = Distribution1D::new(&powers).ok_or_else(|| anyhow::anyhow!("scene has no light with positive power"))?;
         Ok(LightSet { lights, distribution, tri_light, scene_center, scene_radius })
     }
 

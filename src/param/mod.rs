@@ -33,9 +33,9 @@ pub struct ParamDef {
     /// One-line description.
     pub doc: &'static str,
     /// Checks a TOML value's type and range.
-    pub check: fn(&Value) -> Result<(), String>,
+    pub check: fn(&Value) -> anyhow::Result<()>,
     /// Parses a command-line value into TOML (`None`: unset, i.e. `auto`).
-    pub parse: fn(&str) -> Result<Option<Value>, String>,
+    pub parse: fn(&str) -> anyhow::Result<Option<Value>>,
     /// A boolean: `--key` alone means `--key true`.
     pub flag: bool,
 }
@@ -186,15 +186,15 @@ pub fn one_line(doc: &str) -> String {
 }
 
 /// Checks a parameter table: names unique, defaults parse, docs present.
-pub fn check_defs(defs: &[ParamDef]) -> Result<(), String> {
+pub fn check_defs(defs: &[ParamDef]) -> anyhow::Result<()> {
     let mut seen = BTreeSet::new();
     for d in defs {
         if !seen.insert(d.name) {
-            return Err(format!("parameter `{}` declared twice", d.name));
+            return Err(anyhow::anyhow!("parameter `{}` declared twice", d.name));
         }
-        (d.parse)(d.default).map_err(|e| format!("default of `{}`: {e}", d.name))?;
+        (d.parse)(d.default).map_err(|e| anyhow::anyhow!("default of `{}`: {e}", d.name))?;
         if one_line(d.doc).is_empty() {
-            return Err(format!("parameter `{}` has no doc", d.name));
+            return Err(anyhow::anyhow!("parameter `{}` has no doc", d.name));
         }
     }
     Ok(())

@@ -10,17 +10,17 @@ pub trait ParamValue: Sized {
     /// `--key` alone means `--key true`.
     const FLAG: bool = false;
     /// From a TOML value (checking range).
-    fn from_toml(v: &Value) -> Result<Self, String>;
+    fn from_toml(v: &Value) -> anyhow::Result<Self>;
     /// From command-line text.
-    fn from_text(s: &str) -> Result<Self, String>;
+    fn from_text(s: &str) -> anyhow::Result<Self>;
     /// As TOML; `None` for an unset optional (`auto`).
     fn to_toml(&self) -> Option<Value>;
     /// Checks a TOML value.
-    fn check(v: &Value) -> Result<(), String> {
+    fn check(v: &Value) -> anyhow::Result<()> {
         Self::from_toml(v).map(|_| ())
     }
     /// Command-line text as TOML (`None`: the key is unset, i.e. `auto`).
-    fn parse_text(s: &str) -> Result<Option<Value>, String> {
+    fn parse_text(s: &str) -> anyhow::Result<Option<Value>> {
         Self::from_text(s).map(|x| x.to_toml())
     }
 }
@@ -29,20 +29,20 @@ fn kind(v: &Value) -> &'static str {
     v.type_str()
 }
 
-fn int(v: &Value) -> Result<i64, String> {
-    v.as_integer().ok_or_else(|| format!("expected a whole number, found {}", kind(v)))
+fn int(v: &Value) -> anyhow::Result<i64> {
+    v.as_integer().ok_or_else(|| anyhow::anyhow!("expected a whole number, found {}", kind(v)))
 }
 
 macro_rules! unsigned {
     ($t:ty) => {
         impl ParamValue for $t {
             const TYPE: &'static str = "integer";
-            fn from_toml(v: &Value) -> Result<Self, String> {
+            fn from_toml(v: &Value) -> anyhow::Result<Self> {
                 let i = int(v)?;
-                <$t>::try_from(i).map_err(|_| format!("{i} is out of range (0 ..= {})", <$t>::MAX))
+                <$t>::try_from(i).map_err(|_| anyhow::anyhow!("{i} is out of range (0 ..= {})", <$t>::MAX))
             }
-            fn from_text(s: &str) -> Result<Self, String> {
-                s.trim().replace('_', "").parse::<$t>().map_err(|_| format!("`{s}` is not a whole number ≥ 0"))
+            fn from_text(s: &str) -> anyhow::Result<Self> {
+                s.trim().replace('_', "").parse::<$t>().map_err(|_| anyhow::anyhow!("`{s}` is not a whole number ≥ 0"))
             }
             fn to_toml(&self) -> Option<Value> {
                 i64::try_from(*self).ok().map(Value::Integer)
@@ -58,16 +58,16 @@ macro_rules! float {
     ($t:ty) => {
         impl ParamValue for $t {
             const TYPE: &'static str = "float";
-            fn from_toml(v: &Value) -> Result<Self, String> {
+            fn from_toml(v: &Value) -> anyhow::Result<Self> {
                 match v {
                     Value::Float(f) => Ok(*f as $t),
                     Value::Integer(i) => Ok(*i as $t),
-                    _ => Err(format!("expected a number, found {}", kind(v))),
+                    _ => Err(anyhow::anyhow!("expected a number, found {}", kind(v))),
                 }
             }
             /// A number, or a fraction `A/B` (computed in this type).
-            fn from_text(s: &str) -> Result<Self, String> {
-                let num = |t: &str| t.trim().parse::<$t>().map_err(|_| format!("`{s}` is not a number"));
+            fn from_text(s: &str) -> anyhow::Result<Self> {
+                let num = |t: &str| t.trim().parse::<$t>().map_err(|_| anyhow::anyhow!("`{s}` is not a number"));
                 match s.split_once('/') {
                     Some((a, b)) => Ok(num(a)? / num(b)?),
                     None => num(s),
@@ -85,14 +85,14 @@ float!(f64);
 impl ParamValue for bool {
     const TYPE: &'static str = "bool";
     const FLAG: bool = true;
-    fn from_toml(v: &Value) -> Result<Self, String> {
-        v.as_bool().ok_or_else(|| format!("expected true or false, found {}", kind(v)))
+    fn from_toml(v: &Value) -> anyhow::Result<Self> {
+        v.as_bool().ok_or_else(|| anyhow::anyhow!("expected true or false, found {}", kind(v)))
     }
-    fn from_text(s: &str) -> Result<Self, String> {
+    fn from_text(s: &str) -> anyhow::Result<Self> {
         match s.trim() {
             "true" => Ok(true),
             "false" => Ok(false),
-            _ => Err(format!("`{s}` is not true or false")),
+            _ => Err(anyhow::anyhow!("`{s}` is not true or false")),
         }
     }
     fn to_toml(&self) -> Option<Value> {
@@ -102,10 +102,10 @@ impl ParamValue for bool {
 
 impl ParamValue for String {
     const TYPE: &'static str = "string";
-    fn from_toml(v: &Value) -> Result<Self, String> {
-        v.as_str().map(str::to_string).ok_or_else(|| format!("expected a string, found {}", kind(v)))
+    fn from_toml(v: &Value) -> anyhow::Result<Self> {
+        v.as_str().map(str::to_string).ok_or_else(|| anyhow::anyhow!("expected a string, found {}", kind(v)))
     }
-    fn from_text(s: &str) -> Result<Self, String> {
+    fn from_text(s: &str) -> anyhow::Result<Self> {
         Ok(s.to_string())
     }
     fn to_toml(&self) -> Option<Value> {
@@ -116,10 +116,10 @@ impl ParamValue for String {
 /// `auto` (or `none`) on the command line leaves an optional parameter unset.
 impl<T: ParamValue> ParamValue for Option<T> {
     const TYPE: &'static str = T::TYPE;
-    fn from_toml(v: &Value) -> Result<Self, String> {
+    fn from_toml(v: &Value) -> anyhow::Result<Self> {
         T::from_toml(v).map(Some)
     }
-    fn from_text(s: &str) -> Result<Self, String> {
+    fn from_text(s: &str) -> anyhow::Result<Self> {
         match s.trim() {
             "auto" | "none" => Ok(None),
             t => T::from_text(t).map(Some),
@@ -133,11 +133,11 @@ impl<T: ParamValue> ParamValue for Option<T> {
 /// A list: `[1, 4, 16]` in TOML, `1,4,16` on the command line.
 impl ParamValue for Vec<u32> {
     const TYPE: &'static str = "list of integers";
-    fn from_toml(v: &Value) -> Result<Self, String> {
-        let a = v.as_array().ok_or_else(|| format!("expected a list, found {}", kind(v)))?;
+    fn from_toml(v: &Value) -> anyhow::Result<Self> {
+        let a = v.as_array().ok_or_else(|| anyhow::anyhow!("expected a list, found {}", kind(v)))?;
         a.iter().map(u32::from_toml).collect()
     }
-    fn from_text(s: &str) -> Result<Self, String> {
+    fn from_text(s: &str) -> anyhow::Result<Self> {
         let t = s.trim().trim_start_matches('[').trim_end_matches(']');
         t.split(',').map(str::trim).filter(|x| !x.is_empty()).map(u32::from_text).collect()
     }

@@ -25,12 +25,12 @@ impl Filter {
     pub const NAMES: &'static [&'static str] = &["box", "cone", "gaussian"];
 
     /// Parses a filter name.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> anyhow::Result<Self> {
         match s {
             "box" | "none" | "plain" => Ok(Filter::Box),
             "cone" => Ok(Filter::Cone),
             "gaussian" => Ok(Filter::Gaussian),
-            _ => Err(format!("unknown filter `{s}` (known: {})", Self::NAMES.join(", "))),
+            _ => Err(anyhow::anyhow!("unknown filter `{s}` (known: {})", Self::NAMES.join(", "))),
         }
     }
 

@@ -11,9 +11,9 @@ impl Fixed {
     /// Default survival probability.
     pub const DEFAULT_Q: f32 = 0.8;
     /// New policy; q must be in (0, 1].
-    pub fn new(q: f32) -> Result<Self, String> {
+    pub fn new(q: f32) -> anyhow::Result<Self> {
         if !(q > 0.0 && q <= 1.0) {
-            return Err(format!("rr fixed: survival probability must be in (0, 1], got {q}"));
+            return Err(anyhow::anyhow!("rr fixed: survival probability must be in (0, 1], got {q}"));
         }
         Ok(Fixed { q })
     }

@@ -81,7 +81,7 @@ pub fn make(spec: &str) -> Result<Box<dyn RussianRoulette>> {
                 }
                 Box::new(Off)
             }
-            "fixed" => Box::new(Fixed::new(param_f(Fixed::DEFAULT_Q)?).map_err(anyhow::Error::msg)?),
+            "fixed" => Box::new(Fixed::new(param_f(Fixed::DEFAULT_Q)?)?),
             "albedo" => {
                 if s.param.is_some() {
                     bail!("rr `albedo` takes no parameter");

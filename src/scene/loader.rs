@@ -179,28 +179,28 @@ enum LightToml {
 }
 
 /// Checks a colour: finite, non-negative.
-fn colour(c: [f32; 3], what: &str) -> std::result::Result<Color, String> {
+fn colour(c: [f32; 3], what: &str) -> anyhow::Result<Color> {
     let v = Vec3::from_array(c);
     if !v.is_finite() || v.min_element() < 0.0 {
-        return Err(format!("{what} must be finite and non-negative, got {c:?}"));
+        return Err(anyhow!("{what} must be finite and non-negative, got {c:?}"));
     }
     Ok(v)
 }
 
 /// Checks a finite vector.
-fn finite(c: [f32; 3], what: &str) -> std::result::Result<Vec3, String> {
+fn finite(c: [f32; 3], what: &str) -> anyhow::Result<Vec3> {
     let v = Vec3::from_array(c);
-    if v.is_finite() { Ok(v) } else { Err(format!("{what} must be finite, got {c:?}")) }
+    if v.is_finite() { Ok(v) } else { Err(anyhow!("{what} must be finite, got {c:?}")) }
 }
 
 /// Checks and normalises a direction.
-fn direction(c: [f32; 3], what: &str) -> std::result::Result<Vec3, String> {
+fn direction(c: [f32; 3], what: &str) -> anyhow::Result<Vec3> {
     let v = unit_or_zero(finite(c, what)?);
-    if v == Vec3::ZERO { Err(format!("{what} must not be zero")) } else { Ok(v) }
+    if v == Vec3::ZERO { Err(anyhow!("{what} must not be zero")) } else { Ok(v) }
 }
 
 /// Builds the override material with the contract's defaults.
-fn override_material(m: &OverrideToml, name: &str) -> std::result::Result<Material, String> {
+fn override_material(m: &OverrideToml, name: &str) -> anyhow::Result<Material> {
     let grey = [0.5f32; 3];
     let mut mat = Material::diffuse(name, Color::splat(0.5));
     match m {
@@ -211,14 +211,14 @@ fn override_material(m: &OverrideToml, name: &str) -> std::result::Result<Materi
         OverrideToml::Glass { ior, tint } => {
             let ior = ior.unwrap_or(1.5);
             if !(ior.is_finite() && ior > 0.0) {
-                return Err(format!("ior must be finite and positive, got {ior}"));
+                return Err(anyhow::anyhow!("ior must be finite and positive, got {ior}"));
             }
             mat.bsdf = Bsdf::Dielectric(Dielectric { ior, tint: colour(tint.unwrap_or([1.0; 3]), "tint")? });
         }
         OverrideToml::Glossy { kd, ks, ns } => {
             let exponent = ns.unwrap_or(1.0);
             if !(exponent.is_finite() && exponent >= 0.0) {
-                return Err(format!("ns must be finite and non-negative, got {exponent}"));
+                return Err(anyhow::anyhow!("ns must be finite and non-negative, got {exponent}"));
             }
             mat.bsdf = Bsdf::Glossy(Glossy { kd: colour(kd.unwrap_or(grey), "kd")?, ks: colour(ks.unwrap_or([0.0; 3]), "ks")?, exponent });
         }
@@ -231,14 +231,14 @@ fn override_material(m: &OverrideToml, name: &str) -> std::result::Result<Materi
 }
 
 /// Converts a `[[light]]` entry.
-fn light_desc(l: &LightToml) -> std::result::Result<LightDesc, String> {
+fn light_desc(l: &LightToml) -> anyhow::Result<LightDesc> {
     Ok(match *l {
         LightToml::Point { position, intensity } => {
             LightDesc::Point { position: finite(position, "position")?, intensity: colour(intensity, "intensity")? }
         }
         LightToml::Spot { position, direction: dir, intensity, cone_deg, falloff_deg } => {
             if !(cone_deg >= 0.0 && cone_deg <= falloff_deg && falloff_deg <= 180.0 && falloff_deg > 0.0) {
-                return Err(format!(
+                return Err(anyhow::anyhow!(
                     "spot light needs 0 <= cone_deg <= falloff_deg <= 180 and falloff_deg > 0, got cone_deg {cone_deg}, falloff_deg {falloff_deg}"
                 ));
             }

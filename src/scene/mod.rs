@@ -168,9 +168,9 @@ impl Scene {
     /// Adds a mesh with a placement and an optional material override. Zero-area
     /// triangles are dropped and counted. Non-finite coordinates are an error
     /// (the message names the face's source line when known).
-    pub fn add_mesh(&mut self, mesh: &MeshData, place: &Placement, override_material: Option<&Material>) -> Result<(), String> {
+    pub fn add_mesh(&mut self, mesh: &MeshData, place: &Placement, override_material: Option<&Material>) -> anyhow::Result<()> {
         if !place.scale.is_finite() || place.scale.cmpeq(Vec3::ZERO).any() {
-            return Err(format!("scale must be finite and non-zero, got {:?}", place.scale.to_array()));
+            return Err(anyhow::anyhow!("scale must be finite and non-zero, got {:?}", place.scale.to_array()));
         }
         let mat_base = self.materials.len() as u32;
         match override_material {
@@ -178,16 +178,16 @@ impl Scene {
             None => self.materials.extend(mesh.materials.iter().cloned()),
         }
         if mesh.materials.is_empty() && override_material.is_none() {
-            return Err("mesh has no materials".into());
+            return Err(anyhow::anyhow!("mesh has no materials"));
         }
         for (i, p) in mesh.positions.iter().enumerate() {
             if !p.is_finite() {
-                return Err(format!("vertex {} has a non-finite coordinate {:?}", i + 1, p.to_array()));
+                return Err(anyhow::anyhow!("vertex {} has a non-finite coordinate {:?}", i + 1, p.to_array()));
             }
         }
         for (i, n) in mesh.normals.iter().enumerate() {
             if !n.is_finite() {
-                return Err(format!("vertex normal {} has a non-finite component {:?}", i + 1, n.to_array()));
+                return Err(anyhow::anyhow!("vertex normal {} has a non-finite component {:?}", i + 1, n.to_array()));
             }
         }
         let placed: Vec<Vec3> = mesh.positions.iter().map(|&p| place.point(p)).collect();
@@ -195,10 +195,10 @@ impl Scene {
         for f in &mesh.faces {
             let get = |i: u32| placed.get(i as usize).copied();
             let (Some(a), Some(b), Some(c)) = (get(f.v[0]), get(f.v[1]), get(f.v[2])) else {
-                return Err(format!("face at line {} refers to a vertex that does not exist", f.line));
+                return Err(anyhow::anyhow!("face at line {} refers to a vertex that does not exist", f.line));
             };
             if !(a.is_finite() && b.is_finite() && c.is_finite()) {
-                return Err(format!("face at line {} has a non-finite placed coordinate", f.line));
+                return Err(anyhow::anyhow!("face at line {} has a non-finite placed coordinate", f.line));
             }
             let area2 = (b - a).cross(c - a).length();
             if area2.is_nan() || area2 <= 0.0 {
@@ -209,7 +209,7 @@ impl Scene {
                 Some(ni) => {
                     let g = |i: u32| placed_n.get(i as usize).copied();
                     let (Some(na), Some(nb), Some(nc)) = (g(ni[0]), g(ni[1]), g(ni[2])) else {
-                        return Err(format!("face at line {} refers to a normal that does not exist", f.line));
+                        return Err(anyhow::anyhow!("face at line {} refers to a normal that does not exist", f.line));
                     };
                     if na == Vec3::ZERO || nb == Vec3::ZERO || nc == Vec3::ZERO {
                         NO_NORMALS
@@ -252,15 +252,49 @@ impl Scene {
     }
 
     /// Checks what rendering needs: at least one triangle and one light.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> anyhow::Result<()> {
         if self.triangles.is_empty() {
-            return Err("scene has no (non-degenerate) triangles".into());
+            return Err(anyhow::anyhow!("scene has no (non-degenerate) triangles"));
         }
         let has_emitter = self.tri_material.iter().any(|&m| self.materials[m as usize].is_emitter());
         if !has_emitter && self.lights.is_empty() {
-            return Err("scene has no light: no emissive (Ke) material is used and no [[light]] is given".into());
+            return Err(anyhow::anyhow!("scene has no light: no emissive (Ke) material is used and no [[light]] is given"));
         }
         Ok(())
+    }
+}
+
+impl Scene {
+    /// Hash of everything in a scene that affects an image: geometry, normals,
+    /// materials, lights and camera.
+    pub fn fingerprint(&self) -> u64 {
+        let scene = self;
+        let mut h = crate::math::Fnv::default();
+        for t in &scene.triangles {
+            for v in t {
+                for c in v.to_array() {
+                    h.write(&c.to_bits().to_le_bytes());
+                }
+            }
+        }
+        for m in &scene.tri_material {
+            h.write(&m.to_le_bytes());
+        }
+        for n in &scene.tri_normals {
+            h.write(&n.to_le_bytes());
+        }
+        for ns in &scene.normals {
+            for v in ns {
+                for c in v.to_array() {
+                    h.write(&c.to_bits().to_le_bytes());
+                }
+            }
+        }
+        // Debug output of floats is exact (shortest round-trip), so it is a faithful key.
+        h.str(&format!("{:?}", scene.materials));
+        h.str(&format!("{:?}", scene.lights));
+        h.str(&format!("{:?}", scene.camera));
+        h.0
     }
 }
 

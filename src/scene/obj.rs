@@ -136,11 +136,11 @@ fn rest_of_line<'a>(line: &'a str, kw: &str) -> &'a str {
 }
 
 /// Parses a finite float; `what` names the field in the message.
-fn parse_f32(tok: &str, what: &str) -> std::result::Result<f32, String> {
+fn parse_f32(tok: &str, what: &str) -> anyhow::Result<f32> {
     match tok.parse::<f32>() {
         Ok(v) if v.is_finite() => Ok(v),
-        Ok(_) => Err(format!("{what} `{tok}` is not finite")),
-        Err(_) => Err(format!("{what}: cannot parse `{tok}` as a number")),
+        Ok(_) => Err(anyhow::anyhow!("{what} `{tok}` is not finite")),
+        Err(_) => Err(anyhow::anyhow!("{what}: cannot parse `{tok}` as a number")),
     }
 }
 
@@ -163,11 +163,11 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<MtlLibrary> {
     for (i, line) in text.lines().enumerate() {
         let ln = i + 1;
         let Some((kw, args)) = tokens(line) else { continue };
-        let err = |msg: String| anyhow!("{file}:{ln}: {msg}");
+        let err = |msg: anyhow::Error| anyhow!("{file}:{ln}: {msg}");
         if kw == "newmtl" {
             let name = rest_of_line(line, kw);
             if name.is_empty() {
-                return Err(err("`newmtl` without a material name".into()));
+                return Err(err(anyhow!("`newmtl` without a material name")));
             }
             if let Some(done) = current.take() {
                 lib.entries.push(done);
@@ -197,7 +197,7 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<MtlLibrary> {
                     _ => parse_colour_numbers(&args, kw).map_err(err)?,
                 };
                 if c.min_element() < 0.0 {
-                    return Err(err(format!("`{kw}` must not be negative, got {:?}", c.to_array())));
+                    return Err(err(anyhow!("`{kw}` must not be negative, got {:?}", c.to_array())));
                 }
                 let slot = match kw {
                     "Kd" => &mut entry.kd,
@@ -209,16 +209,16 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<MtlLibrary> {
             }
             "illum" => {
                 let [tok] = args.as_slice() else {
-                    return Err(err(format!("`illum` expects one integer, got {} value(s)", args.len())));
+                    return Err(err(anyhow!("`illum` expects one integer, got {} value(s)", args.len())));
                 };
-                let v = tok.parse::<i64>().map_err(|_| err(format!("`illum`: cannot parse `{tok}` as an integer")))?;
+                let v = tok.parse::<i64>().map_err(|_| err(anyhow!("`illum`: cannot parse `{tok}` as an integer")))?;
                 entry.illum = Some(v);
             }
             _ => {
                 // `d -halo 0.5`: the halo flag changes nothing for us.
                 let vals: Vec<&str> = if kw == "d" { args.iter().copied().filter(|a| *a != "-halo").collect() } else { args };
                 let [tok] = vals.as_slice() else {
-                    return Err(err(format!("`{kw}` expects one number, got {} value(s)", vals.len())));
+                    return Err(err(anyhow!("`{kw}` expects one number, got {} value(s)", vals.len())));
                 };
                 let v = parse_f32(tok, &format!("`{kw}`")).map_err(err)?;
                 let slot = match kw {
@@ -238,12 +238,12 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<MtlLibrary> {
 }
 
 /// One number (grey) or three numbers (RGB).
-fn parse_colour_numbers(args: &[&str], kw: &str) -> std::result::Result<Vec3, String> {
+fn parse_colour_numbers(args: &[&str], kw: &str) -> anyhow::Result<Vec3> {
     let what = format!("`{kw}`");
     match args {
         [g] => Ok(Vec3::splat(parse_f32(g, &what)?)),
         [r, g, b] => Ok(Vec3::new(parse_f32(r, &what)?, parse_f32(g, &what)?, parse_f32(b, &what)?)),
-        _ => Err(format!("{what} expects 1 or 3 numbers, got {}", args.len())),
+        _ => Err(anyhow::anyhow!("{what} expects 1 or 3 numbers, got {}", args.len())),
     }
 }
 
@@ -267,19 +267,23 @@ struct Corner {
 
 /// Parses one `a`, `a/b`, `a/b/c` or `a//c` corner. Negative indices count back from
 /// the current number of elements; positive ones are checked once the file is read.
-fn parse_corner(tok: &str, nv: usize, nvt: usize, nvn: usize) -> std::result::Result<Corner, String> {
+fn parse_corner(tok: &str, nv: usize, nvt: usize, nvn: usize) -> anyhow::Result<Corner> {
     let parts: Vec<&str> = tok.split('/').collect();
     if parts.len() > 3 || parts[0].is_empty() {
-        return Err(format!("malformed face vertex `{tok}`"));
+        return Err(anyhow::anyhow!("malformed face vertex `{tok}`"));
     }
-    let index = |s: &str, count: usize, what: &str| -> std::result::Result<i64, String> {
-        let i = s.parse::<i64>().map_err(|_| format!("face vertex `{tok}`: cannot parse {what} index `{s}`"))?;
+    let index = |s: &str, count: usize, what: &str| -> anyhow::Result<i64> {
+        let i = s.parse::<i64>().map_err(|_| anyhow::anyhow!("face vertex `{tok}`: cannot parse {what} index `{s}`"))?;
         match i {
-            0 => Err(format!("face vertex `{tok}`: {what} index 0 is invalid (OBJ indices start at 1)")),
+            0 => Err(anyhow::anyhow!("face vertex `{tok}`: {what} index 0 is invalid (OBJ indices start at 1)")),
             i if i > 0 => Ok(i - 1),
             i => {
                 let r = count as i64 + i;
-                if r < 0 { Err(format!("face vertex `{tok}`: relative {what} index {i} is out of range ({count} defined)")) } else { Ok(r) }
+                if r < 0 {
+                    Err(anyhow::anyhow!("face vertex `{tok}`: relative {what} index {i} is out of range ({count} defined)"))
+                } else {
+                    Ok(r)
+                }
             }
         }
     };
@@ -310,11 +314,11 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
     for (i, line) in text.lines().enumerate() {
         let ln = i + 1;
         let Some((kw, args)) = tokens(line) else { continue };
-        let err = |msg: String| anyhow!("{file}:{ln}: {msg}");
+        let err = |msg: anyhow::Error| anyhow!("{file}:{ln}: {msg}");
         match kw {
             "v" | "vn" => {
                 if args.len() < 3 {
-                    return Err(err(format!("`{kw}` needs 3 coordinates, got {}", args.len())));
+                    return Err(err(anyhow!("`{kw}` needs 3 coordinates, got {}", args.len())));
                 }
                 let what = if kw == "v" { "vertex coordinate" } else { "normal component" };
                 let mut c = [0.0f32; 3];
@@ -326,10 +330,11 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
             "vt" => nvt += 1,
             "f" => {
                 if args.len() < 3 {
-                    return Err(err(format!("face needs at least 3 vertices, got {}", args.len())));
+                    return Err(err(anyhow!("face needs at least 3 vertices, got {}", args.len())));
                 }
                 let (nv, nvn) = (out.mesh.positions.len(), out.mesh.normals.len());
-                let corners: Vec<Corner> = args.iter().map(|t| parse_corner(t, nv, nvt, nvn)).collect::<Result<_, _>>().map_err(err)?;
+                let corners: Vec<Corner> =
+                    args.iter().map(|t| parse_corner(t, nv, nvt, nvn)).collect::<anyhow::Result<_>>().map_err(err)?;
                 let with_normals = corners.iter().filter(|c| c.n.is_some()).count();
                 if with_normals != 0 && with_normals != corners.len() && partial_normals_line.is_none() {
                     partial_normals_line = Some(ln);
@@ -361,7 +366,7 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
             "mtllib" => {
                 let rest = rest_of_line(line, kw);
                 if rest.is_empty() {
-                    return Err(err("`mtllib` without a file name".into()));
+                    return Err(err(anyhow!("`mtllib` without a file name")));
                 }
                 // The whole rest may be one file name with spaces; otherwise it is a
                 // whitespace-separated list, as the OBJ specification has it.
@@ -372,7 +377,7 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
                         continue;
                     }
                     if !p.is_file() {
-                        return Err(err(format!("material library {} not found", p.display())));
+                        return Err(err(anyhow!("material library {} not found", p.display())));
                     }
                     let lib = load_mtl(&p).map_err(|e| anyhow!("{file}:{ln}: mtllib: {e}"))?;
                     libraries.push((p, lib));

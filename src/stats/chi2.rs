@@ -357,10 +357,10 @@ fn emitter(name: &str, radiance: f32) -> Material {
 }
 
 fn scene_with(meshes: &[MeshData], lights: Vec<LightDesc>) -> Result<Scene> {
-    let cam = crate::camera::Camera::new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 40.0, 8, 8).map_err(anyhow::Error::msg)?;
+    let cam = crate::camera::Camera::new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 40.0, 8, 8)?;
     let mut s = Scene::new("chi2", cam);
     for m in meshes {
-        s.add_mesh(m, &Placement::default(), None).map_err(anyhow::Error::msg)?;
+        s.add_mesh(m, &Placement::default(), None)?;
     }
     s.lights = lights;
     Ok(s)
@@ -392,7 +392,7 @@ fn area_light_case_with(use_quad: bool, use_tri: bool) -> Result<DirCase> {
         meshes.push(tri);
     }
     let scene = scene_with(&meshes, Vec::new())?;
-    let lights = LightSet::build(&scene).map_err(anyhow::Error::msg)?;
+    let lights = LightSet::build(&scene)?;
     let p = Vec3::ZERO;
     let tris: Vec<(u32, [Vec3; 3], Vec3)> =
         (0..scene.triangles.len() as u32).map(|i| (i, scene.triangles[i as usize], scene.geometric_normal(i))).collect();
@@ -424,7 +424,7 @@ fn area_emission_case() -> Result<(DirCase, Scene, LightSet, [Vec3; 3])> {
     let (c0, a, b) = (Vec3::new(-0.5, 0.2, 1.0), Vec3::new(1.2, 0.1, 0.3), Vec3::new(-0.2, 0.9, -0.1));
     let quad = quad_mesh([c0, c0 + b, c0 + a + b, c0 + a], emitter("quad", 2.0));
     let scene = scene_with(&[quad], Vec::new())?;
-    let lights = LightSet::build(&scene).map_err(anyhow::Error::msg)?;
+    let lights = LightSet::build(&scene)?;
     let n = scene.geometric_normal(0);
     let (sc, sl) = (scene.clone(), lights.clone());
     let case = DirCase {
@@ -490,7 +490,7 @@ fn delta_emission_case(light: LightDesc) -> Result<DirCase> {
         Material::diffuse("floor", Color::splat(0.5)),
     );
     let scene = scene_with(&[floor], vec![light.clone()])?;
-    let lights = LightSet::build(&scene).map_err(anyhow::Error::msg)?;
+    let lights = LightSet::build(&scene)?;
     let (name, frame, theta_max, pdf): (&str, Frame, f64, PdfFn) = match light {
         LightDesc::Spot { direction, cone_deg, falloff_deg, .. } => {
             let outer = (falloff_deg.max(cone_deg).min(180.0) as f64).to_radians();

@@ -56,17 +56,17 @@ fn quad(corners: [[f32; 3]; 4], material: Material) -> MeshData {
 
 /// The test scene with its BVH.
 pub fn world() -> Result<World> {
-    let cam = Camera::new(Vec3::new(0.0, 1.6, 3.2), Vec3::new(0.0, 0.0, 0.2), Vec3::Y, 30.0, RES, RES).map_err(anyhow::Error::msg)?;
+    let cam = Camera::new(Vec3::new(0.0, 1.6, 3.2), Vec3::new(0.0, 0.0, 0.2), Vec3::Y, 30.0, RES, RES)?;
     let mut s = Scene::new("area-light-floor", cam);
     let floor = quad(
         [[-10.0, 0.0, -10.0], [-10.0, 0.0, 10.0], [10.0, 0.0, 10.0], [10.0, 0.0, -10.0]],
         Material::diffuse("floor", Color::splat(FLOOR_ALBEDO)),
     );
     let light = quad(LIGHT, Material { emission: Color::splat(LIGHT_RADIANCE), ..Material::diffuse("light", Color::ZERO) });
-    s.add_mesh(&floor, &Placement::default(), None).map_err(anyhow::Error::msg)?;
-    s.add_mesh(&light, &Placement::default(), None).map_err(anyhow::Error::msg)?;
+    s.add_mesh(&floor, &Placement::default(), None)?;
+    s.add_mesh(&light, &Placement::default(), None)?;
     let accel = make_accel("bvh", &s.triangles)?;
-    World::new(s, accel).map_err(anyhow::Error::msg)
+    World::new(s, accel)
 }
 
 /// Irradiance at floor point `x` (normal +y) from the light, by Lambert's formula

@@ -72,9 +72,9 @@ pub fn policies() -> Result<Vec<Policy>> {
 /// The Cornell box at `res`×`res` pixels with its BVH.
 fn cornell_world(res: u32) -> Result<World> {
     let mut scene = cornell();
-    scene.camera = scene.camera.with_resolution(res, res).map_err(anyhow::Error::msg)?;
+    scene.camera = scene.camera.with_resolution(res, res)?;
     let accel = make_accel("bvh", &scene.triangles)?;
-    World::new(scene, accel).map_err(anyhow::Error::msg)
+    World::new(scene, accel)
 }
 
 /// `n` observations of the mean radiance (channel mean) over `pixels`, by the path

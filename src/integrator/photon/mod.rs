@@ -141,7 +141,7 @@ impl PhotonSetup {
         let p = PhotonParams::read(r)?;
         let direct = DirectParams::read_checked(r)?;
         let gather = GatherSpec::read(&p.gather, r)?;
-        Filter::parse(&p.filter).map_err(anyhow::Error::msg)?;
+        Filter::parse(&p.filter)?;
         if cfg.sampler == "hammersley" && p.emit_photons.is_none() {
             bail!("sampler `hammersley` needs the number of emitted photons up front: set emit_photons (--emit-photons N) or use `halton`");
         }
@@ -260,7 +260,7 @@ impl Integrator for PhotonIntegrator {
         let (p, direct) = (&self.setup.p, &self.setup.direct);
         let gp = self.setup.gather.gather_params();
         let r_scene = world.lights.scene_radius;
-        let filter = Filter::parse(&p.filter).map_err(anyhow::Error::msg)?;
+        let filter = Filter::parse(&p.filter)?;
         let emit_sampler = crate::sampler::make(&cfg.sampler, cfg.seed, p.emit_photons)?;
         let t0 = Instant::now();
         let settings = PhotonPassSettings {
