@@ -5,12 +5,12 @@ use crate::accel::{Accel, bvh::Bvh, bvh4::Bvh4, bvh8::Bvh8, bvh8q::Bvh8q, linear
 use crate::config::{RenderConfig, StrategySpec};
 use crate::integrator::{Integrator, path::PathIntegrator, photon::PhotonIntegrator, ppm::PpmIntegrator, sppm::SppmIntegrator};
 use crate::rr::{RussianRoulette, albedo::Albedo, fixed::Fixed, off::Off, throughput::Throughput};
-use crate::sampler::{Sampler, halton::HaltonSampler, hammersley::HammersleySampler, random::RandomSampler};
+use crate::sampler::{Sampler, halton::HaltonSampler, hammersley::HammersleySampler, random::RandomSampler, sobol::SobolSampler};
 use anyhow::{Result, bail};
 use glam::Vec3;
 
 /// Sampler names.
-pub const SAMPLERS: &[&str] = &["random", "halton", "hammersley"];
+pub const SAMPLERS: &[&str] = &["random", "halton", "hammersley", "sobol"];
 /// Accelerator names.
 pub const ACCELS: &[&str] = &["none", "bvh", "bvh4", "bvh8", "bvh8q"];
 /// Russian-roulette policy names.
@@ -28,6 +28,7 @@ pub fn make_sampler(name: &str, seed: u64, count: Option<u64>) -> Result<Box<dyn
     Ok(match name {
         "random" => Box::new(RandomSampler::new(seed)),
         "halton" => Box::new(HaltonSampler::new(seed)),
+        "sobol" => Box::new(SobolSampler::new(seed)),
         "hammersley" => match count {
             Some(n) => Box::new(HammersleySampler::new(seed, n).map_err(anyhow::Error::msg)?),
             None => bail!("sampler `hammersley` needs the sample count up front, which is unknown here; use `halton` or `random`"),
@@ -146,7 +147,7 @@ mod tests {
             assert!(make_sampler(n, 1, Some(4)).is_ok());
         }
         assert!(make_sampler("hammersley", 1, None).err().unwrap().to_string().contains("up front"));
-        assert!(make_sampler("sobol", 1, None).err().unwrap().to_string().contains("known: random"));
+        assert!(make_sampler("latin", 1, None).err().unwrap().to_string().contains("known: random"));
         for n in ACCELS {
             assert_eq!(make_accel(n, &[]).unwrap().name(), *n);
         }

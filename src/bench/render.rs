@@ -29,7 +29,7 @@ pub struct RenderArgs {
     #[arg(long, value_delimiter = ',', default_value = "direct")]
     pub gather: Vec<String>,
     /// Samplers, comma-separated; the first is the reference of `ratio`.
-    #[arg(long, value_delimiter = ',', default_value = "random,halton,hammersley")]
+    #[arg(long, value_delimiter = ',', default_value = "random,halton,hammersley,sobol")]
     pub samplers: Vec<String>,
     /// Image width and height in pixels.
     #[arg(long, default_value_t = 256)]
