@@ -67,10 +67,11 @@ pub trait Sampler: Send + Sync {
 }
 
 /// Key of a (seed, stream) pair, computed once per stream: per-dimension hashes
-/// derive from it with one [`mix64`] each.
+/// derive from it with one [`mix64`] each (with salt 0, the same hash as the
+/// per-(seed, stream, dimension) rotations of earlier versions).
 #[inline]
 pub(crate) fn stream_key(seed: u64, stream: u64) -> u64 {
-    mix64(mix64(seed ^ 0xA076_1D64_78BD_642F) ^ stream.wrapping_mul(0xE703_7ED1_A0B4_28DB))
+    mix64(seed ^ 0xA076_1D64_78BD_642F) ^ mix64(stream.wrapping_add(0xE703_7ED1_A0B4_28DB))
 }
 
 /// Hash of (stream key, dimension, salt): one mixing round.

@@ -171,6 +171,9 @@ pub struct SobolSampler {
     group: u32,
     shuffled: u32,
     lane_seed: u32,
+    /// False only for the statistical suite's planted control (see
+    /// [`SobolSampler::planted_unnested`]).
+    nested: bool,
 }
 
 impl SobolSampler {
@@ -191,7 +194,14 @@ impl SobolSampler {
             group: u32::MAX,
             shuffled: 0,
             lane_seed: 0,
+            nested: true,
         }
+    }
+    /// Planted defect for `photonlab stats` (not a plug-in): the output scramble
+    /// hashes each bit from the bits *below* it (no bit reversal), which is a
+    /// bijection but not a nested scramble, so it breaks the nets.
+    pub fn planted_unnested(seed: u64) -> Self {
+        SobolSampler { nested: false, ..Self::new(seed) }
     }
     #[inline]
     fn value(&mut self, dim: u32) -> f32 {
@@ -208,7 +218,8 @@ impl SobolSampler {
         }
         let y = sobol_reversed(lane, self.shuffled);
         let seed = hash32(self.lane_seed ^ lane.wrapping_mul(0x9E37_79B9));
-        frac_to_f32(lk_permutation(y, seed).reverse_bits())
+        let z = if self.nested { lk_permutation(y, seed).reverse_bits() } else { lk_permutation(y.reverse_bits(), seed) };
+        frac_to_f32(z)
     }
 }
 
