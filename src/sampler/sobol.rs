@@ -170,7 +170,9 @@ pub struct SobolSampler {
     /// lane-seed base: a cache, so values stay a pure function of the inputs.
     group: u32,
     shuffled: u32,
-    lane_seed: u32,
+    lane_seeds: [u32; 4],
+    /// Bit-reversed sample index.
+    rindex: u32,
     /// False only for the statistical suite's planted control (see
     /// [`SobolSampler::planted_unnested`]).
     nested: bool,
@@ -193,7 +195,8 @@ impl SobolSampler {
             dim: 0,
             group: u32::MAX,
             shuffled: 0,
-            lane_seed: 0,
+            lane_seeds: [0; 4],
+            rindex: 0,
             nested: true,
         }
     }
@@ -203,7 +206,7 @@ impl SobolSampler {
     pub fn planted_unnested(seed: u64) -> Self {
         SobolSampler { nested: false, ..Self::new(seed) }
     }
-    #[inline]
+    #[inline(always)]
     fn value(&mut self, dim: u32) -> f32 {
         let (g, lane) = group_of(dim);
         if !self.scramble {
@@ -213,11 +216,12 @@ impl SobolSampler {
             // Index shuffle of the group: an Owen scramble of the index, kept reversed.
             let h = dim_hash(self.key, g, 0x2545_F491_4F6C_DD1D);
             self.group = g;
-            self.shuffled = lk_permutation(self.index.reverse_bits(), h as u32);
-            self.lane_seed = (h >> 32) as u32;
+            self.shuffled = lk_permutation(self.rindex, h as u32);
+            let base = (h >> 32) as u32;
+            self.lane_seeds = [0u32, 1, 2, 3].map(|l| hash32(base ^ l.wrapping_mul(0x9E37_79B9)));
         }
         let y = sobol_reversed(lane, self.shuffled);
-        let seed = hash32(self.lane_seed ^ lane.wrapping_mul(0x9E37_79B9));
+        let seed = self.lane_seeds[lane as usize & 3];
         let z = if self.nested { lk_permutation(y, seed).reverse_bits() } else { lk_permutation(y.reverse_bits(), seed) };
         frac_to_f32(z)
     }
@@ -236,6 +240,7 @@ impl Sampler for SobolSampler {
             self.key = stream_key(self.seed ^ high.wrapping_mul(0xC2B2_AE3D_27D4_EB4F), stream);
         }
         self.index = index as u32;
+        self.rindex = self.index.reverse_bits();
         self.dim = 0;
         self.group = u32::MAX;
     }
