@@ -40,6 +40,9 @@ pub struct RenderArgs {
     /// Photon integrator: photons in the direct + indirect maps.
     #[arg(long, default_value_t = 200_000)]
     pub photons: u32,
+    /// Photon integrator: photons in the caustic map (0: none; `cornell` has no glass).
+    #[arg(long, default_value_t = 0)]
+    pub caustic_photons: u32,
     /// Photon integrator: final-gather rays per point.
     #[arg(long, default_value_t = 64)]
     pub gather_samples: u32,
@@ -67,6 +70,7 @@ impl Default for RenderArgs {
             size: 256,
             spp: 64,
             photons: 200_000,
+            caustic_photons: 0,
             gather_samples: 64,
             threads: 0,
             reps: 3,
@@ -131,13 +135,14 @@ fn cases(args: &RenderArgs) -> Result<Vec<Case>> {
                         threads: args.threads,
                         resolution: Some([args.size, args.size]),
                         photons: args.photons,
+                        caustic_photons: args.caustic_photons,
                         gather_samples: args.gather_samples,
                         ..RenderConfig::default()
                     };
                     if let Some(g) = &gather {
                         cfg.gather = g.clone();
                         // Hammersley needs its photon count up front.
-                        cfg.emit_photons = (sampler == "hammersley").then_some(args.photons as u64 * 2);
+                        cfg.emit_photons = (sampler == "hammersley").then_some((args.photons + args.caustic_photons) as u64 * 2);
                     }
                     out.push(Case { scene: scene.clone(), integrator: integ.clone(), gather: gather.clone(), cfg });
                 }
