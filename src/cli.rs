@@ -91,7 +91,7 @@ pub struct RenderArgs {
     /// Samples per pixel.
     #[arg(long)]
     pub spp: Option<u32>,
-    /// Sampler: random | halton | hammersley.
+    /// Sampler: random | halton | hammersley | sobol.
     #[arg(long)]
     pub sampler: Option<String>,
     /// Accelerator: none | bvh | bvh4 | bvh8 | bvh8q (default bvh8).

@@ -14,7 +14,7 @@ pub struct RenderConfig {
     pub integrator: String,
     /// Samples per pixel.
     pub spp: u32,
-    /// Sampler name (`random`, `halton`, `hammersley`).
+    /// Sampler name (`random`, `halton`, `hammersley`, `sobol`).
     pub sampler: String,
     /// Accelerator name (`none`, `bvh`, `bvh4`, `bvh8`, `bvh8q`).
     pub accel: String,

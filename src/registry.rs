@@ -191,6 +191,10 @@ pub fn catalogue() -> Catalogue {
                 plugin("random", "Independent uniform samples (PCG32)."),
                 plugin("halton", "Halton with random digit permutations per dimension and a per-pixel Cranley–Patterson rotation."),
                 plugin("hammersley", "Hammersley point set (needs the sample count up front)."),
+                plugin(
+                    "sobol",
+                    "Owen-scrambled Sobol' (Burley 2020: shuffled index, hash-based nested scrambling, independent 4-D groups aligned with each bounce's dimensions).",
+                ),
             ],
         },
         Family {
@@ -282,7 +286,7 @@ mod tests {
             assert!(make_sampler(n, 1, Some(4)).is_ok());
         }
         assert!(make_sampler("hammersley", 1, None).err().unwrap().to_string().contains("up front"));
-        assert!(make_sampler("sobol", 1, None).err().unwrap().to_string().contains("known: random"));
+        assert!(make_sampler("latin", 1, None).err().unwrap().to_string().contains("known: random"));
         for n in ACCELS {
             assert_eq!(make_accel(n, &[]).unwrap().name(), *n);
         }

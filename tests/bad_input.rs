@@ -104,7 +104,7 @@ fn malformed_toml_unknown_key_and_type() {
 fn unknown_strategy_name() {
     let d = tmp("sampler");
     let p = scene_with_obj(&d, "s", TRI);
-    assert_error(&p, &["--sampler", "sobol"], &["sobol", "halton"]);
+    assert_error(&p, &["--sampler", "latin"], &["latin", "halton"]);
 }
 
 #[test]

@@ -94,7 +94,7 @@ fn validation_errors_name_file_and_line() {
         ("spp = [1, 2]", "spp = [1, 2]\nsamplr = [\"random\"]", "samplr"),
         ("spp = [1, 2]", "spp = []", "empty axis"),
         ("spp = [1, 2]", "spp = [1, 0]", "spp must be at least 1"),
-        ("sampler = [\"random\", \"halton\"]", "sampler = [\"random\", \"sobol\"]", "sobol"),
+        ("sampler = [\"random\", \"halton\"]", "sampler = [\"random\", \"latin\"]", "latin"),
         ("max_depth = 4", "max_depth = \"deep\"", "max_depth"),
     ];
     for (from, to, needle) in cases {

@@ -43,7 +43,7 @@ fn furnace_truncation_bias_is_visible() {
 /// for every sampler.
 #[test]
 fn deterministic_across_thread_counts() {
-    for sampler in ["random", "halton", "hammersley"] {
+    for sampler in ["random", "halton", "hammersley", "sobol"] {
         let mut imgs = Vec::new();
         for threads in [1, 2, 2] {
             let cfg = RenderConfig { spp: 4, sampler: sampler.into(), threads, seed: 11, resolution: Some([40, 30]), ..Default::default() };

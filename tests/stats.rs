@@ -41,6 +41,8 @@ fn russian_roulette_is_unbiased_and_the_broken_policy_is_caught() {
 fn low_discrepancy_sets_beat_random() {
     let rows = check(Family::Discrepancy);
     assert!(rows.iter().any(|r| r.test == "discrepancy/l2/d6/halton/ratio"));
+    assert!(rows.iter().any(|r| r.test == "discrepancy/l2/d4/sobol/ratio"));
+    assert!(rows.iter().any(|r| r.test == "discrepancy/l2/d4/sobol-unnested/ratio" && r.expected == Outcome::Fail));
     assert!(rows.iter().any(|r| r.test.starts_with("discrepancy/star2d/")));
 }
 
@@ -55,6 +57,9 @@ fn every_sampling_routine_matches_its_pdf() {
         "emit/area/direction",
         "emit/spot/direction",
         "glass/outside_cos0.5",
+        "sobol/cosine_hemisphere",
+        "sobol/phong/n10",
+        "planted/sobol/cosine_vs_uniform_pdf",
     ] {
         assert!(rows.iter().any(|r| r.test == format!("chi2/{name}")), "missing chi2/{name}");
     }

@@ -4,6 +4,7 @@
 pub mod accel;
 pub mod embree;
 pub mod knn;
+pub mod render;
 pub mod scaling;
 
 use anyhow::Result;
@@ -18,6 +19,8 @@ pub enum BenchCommand {
     EmbreeCompare(embree::EmbreeArgs),
     /// Photon kd-tree against kiddo: build and k-NN query times on the same points.
     Knn(knn::KnnArgs),
+    /// Time per camera sample of `path` and the photon gathers, per sampler.
+    Render(render::RenderArgs),
     /// Per-phase speed-up of a photon render from 1 to 2 threads.
     Scaling(scaling::ScalingArgs),
     /// Every benchmark that finishes within about ten minutes, one after another.
@@ -34,6 +37,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Accel(a) => accel::run(&a),
         BenchCommand::EmbreeCompare(a) => embree::run(&a),
         BenchCommand::Knn(a) => knn::run(&a),
+        BenchCommand::Render(a) => render::run(&a).map(|_| ()),
         BenchCommand::Scaling(a) => scaling::run(&a),
         BenchCommand::All { json } => run_all(json),
     }
@@ -56,5 +60,6 @@ fn run_all(json: bool) -> Result<()> {
     }
     knn::run(&knn::KnnArgs { n: 1_000_000, queries: 20_000, threads: None, reps: 3, json })?;
     scaling::run(&scaling::ScalingArgs { json, ..Default::default() })?;
+    render::run(&render::RenderArgs { json, ..Default::default() })?;
     Ok(())
 }

@@ -1,25 +1,31 @@
 //! `halton`: the Halton sequence, dimension d in the d-th prime base.
 //!
 //! Randomisation: every dimension's digits go through a random permutation seeded by
-//! the render seed (breaks the correlation between large prime bases), and each
-//! stream (pixel) gets its own Cranley–Patterson rotation per dimension so
-//! neighbouring pixels are decorrelated. Sample `index` of a stream is point `index`
-//! of the sequence. Dimensions beyond the prime table fall back to `random`.
-//! With `scramble = false` (tests) the plain radical inverses are returned.
+//! the render seed (breaks the correlation between large prime bases; tables built
+//! once per seed and shared), and each stream (pixel) gets its own Cranley–Patterson
+//! rotation per dimension (one hash of a per-stream key) so neighbouring pixels are
+//! decorrelated. Sample `index` of a stream is point `index` of the sequence, so only
+//! the few digits of a small index are visited. Dimensions beyond the prime table
+//! are hashed uniform values. With `scramble = false` (tests) the plain radical
+//! inverses are returned.
 
-use super::random::RandomSampler;
-use super::{PRIMES, Sampler, cp_shift, digit_permutations, radical_inverse, rotate, scrambled_radical_inverse};
+use super::radical::DigitTables;
+use super::{Sampler, dim_hash, frac_to_f32, stream_key};
 use std::sync::Arc;
+
+/// Salt of the hashed values of dimensions beyond the prime table.
+const SALT_BEYOND: u64 = 0x5851_F42D_4C95_7F2D;
 
 /// Halton sampler.
 #[derive(Clone)]
 pub struct HaltonSampler {
     seed: u64,
-    perms: Option<Arc<Vec<Vec<u16>>>>,
+    tables: Arc<DigitTables>,
+    scramble: bool,
     stream: u64,
+    key: u64,
     index: u64,
     dim: u32,
-    fallback: RandomSampler,
 }
 
 impl HaltonSampler {
@@ -29,17 +35,34 @@ impl HaltonSampler {
     }
     /// With `scramble == false`: the raw sequence, no permutation, no rotation.
     pub fn with_scramble(seed: u64, scramble: bool) -> Self {
-        let perms = scramble.then(|| Arc::new(digit_permutations(seed, PRIMES.len())));
-        HaltonSampler { seed, perms, stream: 0, index: 0, dim: 0, fallback: RandomSampler::new(seed) }
+        let tables = Arc::new(DigitTables::new(seed, scramble));
+        HaltonSampler { seed, tables, scramble, stream: 0, key: stream_key(seed, 0), index: 0, dim: 0 }
     }
     /// Value of dimension `dim` for the current stream and index.
     #[inline]
     pub fn value(&self, dim: u32) -> f32 {
-        let base = PRIMES[dim as usize];
-        match &self.perms {
-            Some(p) => rotate(scrambled_radical_inverse(base, &p[dim as usize], self.index), cp_shift(self.seed, self.stream, dim)),
-            None => (radical_inverse(base, self.index) as f32).min(crate::math::ONE_MINUS_EPSILON),
-        }
+        frac_to_f32(fraction(&self.tables, self.scramble, self.key, self.index, dim as usize, dim))
+    }
+}
+
+/// Fraction of table dimension `k` (sampler dimension `dim`) with the stream's
+/// rotation; hashed values past the table (shared with `hammersley`).
+#[inline]
+pub(crate) fn fraction(tables: &DigitTables, scramble: bool, key: u64, index: u64, k: usize, dim: u32) -> u32 {
+    if k < tables.len() {
+        let f = tables.fraction(k, index);
+        if scramble { f.wrapping_add((dim_hash(key, dim, 0) >> 32) as u32) } else { f }
+    } else {
+        (dim_hash(key ^ index.wrapping_mul(0xD6E8_FEB8_6659_FD93), dim, SALT_BEYOND) >> 32) as u32
+    }
+}
+
+/// Starts a stream, reusing the stream key when the stream does not change.
+#[inline]
+pub(crate) fn restart(seed: u64, stream: &mut u64, key: &mut u64, new_stream: u64) {
+    if *stream != new_stream {
+        *stream = new_stream;
+        *key = stream_key(seed, new_stream);
     }
 }
 
@@ -47,17 +70,15 @@ impl Sampler for HaltonSampler {
     fn name(&self) -> &'static str {
         "halton"
     }
+    #[inline]
     fn start(&mut self, stream: u64, index: u64) {
-        self.stream = stream;
+        restart(self.seed, &mut self.stream, &mut self.key, stream);
         self.index = index;
         self.dim = 0;
-        self.fallback.start(stream, index);
     }
+    #[inline]
     fn set_dimension(&mut self, dim: u32) {
         self.dim = dim;
-        if dim as usize >= PRIMES.len() {
-            self.fallback.set_dimension(dim);
-        }
     }
     fn dimension(&self) -> u32 {
         self.dim
@@ -69,14 +90,13 @@ impl Sampler for HaltonSampler {
     fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         self.dim = self.dim.saturating_add(1);
-        if (d as usize) < PRIMES.len() {
-            self.value(d)
-        } else {
-            if d as usize == PRIMES.len() {
-                self.fallback.set_dimension(d);
-            }
-            self.fallback.next_1d()
-        }
+        self.value(d)
+    }
+    #[inline]
+    fn next_2d(&mut self) -> [f32; 2] {
+        let d = self.dim;
+        self.dim = self.dim.saturating_add(2);
+        [self.value(d), self.value(d.saturating_add(1))]
     }
     fn clone_box(&self) -> Box<dyn Sampler> {
         Box::new(self.clone())
@@ -86,6 +106,7 @@ impl Sampler for HaltonSampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampler::PRIMES;
 
     #[test]
     fn raw_first_values() {
@@ -116,7 +137,7 @@ mod tests {
         assert!(strata.iter().all(|&c| c <= 2), "{strata:?}");
         for i in 0..200 {
             s.start(i, i);
-            for _ in 0..80 {
+            for _ in 0..(PRIMES.len() + 16) {
                 let v = s.next_1d();
                 assert!((0.0..1.0).contains(&v));
             }

@@ -3,8 +3,9 @@
 //! same digit permutations and per-stream Cranley–Patterson rotation as `halton`.
 //! It needs N up front: building one without a sample count is an error.
 
-use super::random::RandomSampler;
-use super::{PRIMES, Sampler, cp_shift, digit_permutations, radical_inverse, rotate, scrambled_radical_inverse};
+use super::halton::{fraction, restart};
+use super::radical::DigitTables;
+use super::{Sampler, dim_hash, frac_to_f32, stream_key};
 use std::sync::Arc;
 
 /// Hammersley sampler over a fixed number of samples per stream.
@@ -12,40 +13,36 @@ use std::sync::Arc;
 pub struct HammersleySampler {
     seed: u64,
     n: u64,
-    perms: Option<Arc<Vec<Vec<u16>>>>,
+    tables: Arc<DigitTables>,
+    scramble: bool,
     stream: u64,
+    key: u64,
     index: u64,
     dim: u32,
-    fallback: RandomSampler,
 }
 
 impl HammersleySampler {
     /// Randomised Hammersley set of `n` points per stream.
-    pub fn new(seed: u64, n: u64) -> Result<Self, String> {
+    pub fn new(seed: u64, n: u64) -> anyhow::Result<Self> {
         Self::with_scramble(seed, n, true)
     }
     /// With `scramble == false`: the raw point set.
-    pub fn with_scramble(seed: u64, n: u64, scramble: bool) -> Result<Self, String> {
+    pub fn with_scramble(seed: u64, n: u64, scramble: bool) -> anyhow::Result<Self> {
         if n == 0 {
-            return Err("the hammersley sampler needs the number of samples up front (got 0)".into());
+            anyhow::bail!("the hammersley sampler needs the number of samples up front (got 0)");
         }
-        let perms = scramble.then(|| Arc::new(digit_permutations(seed, PRIMES.len())));
-        Ok(HammersleySampler { seed, n, perms, stream: 0, index: 0, dim: 0, fallback: RandomSampler::new(seed) })
+        let tables = Arc::new(DigitTables::new(seed, scramble));
+        Ok(HammersleySampler { seed, n, tables, scramble, stream: 0, key: stream_key(seed, 0), index: 0, dim: 0 })
     }
     #[inline]
     fn value(&self, dim: u32) -> f32 {
-        let x = if dim == 0 {
-            (self.index % self.n) as f64 / self.n as f64
+        if dim == 0 {
+            // floor((i mod N) / N · 2^32), exact.
+            let f = (((self.index % self.n) as u128) << 32) / self.n as u128;
+            let f = f as u32;
+            frac_to_f32(if self.scramble { f.wrapping_add((dim_hash(self.key, 0, 0) >> 32) as u32) } else { f })
         } else {
-            let base = PRIMES[dim as usize - 1];
-            match &self.perms {
-                Some(p) => scrambled_radical_inverse(base, &p[dim as usize - 1], self.index),
-                None => radical_inverse(base, self.index),
-            }
-        };
-        match &self.perms {
-            Some(_) => rotate(x, cp_shift(self.seed, self.stream, dim)),
-            None => (x as f32).min(crate::math::ONE_MINUS_EPSILON),
+            frac_to_f32(fraction(&self.tables, self.scramble, self.key, self.index, dim as usize - 1, dim))
         }
     }
 }
@@ -54,17 +51,15 @@ impl Sampler for HammersleySampler {
     fn name(&self) -> &'static str {
         "hammersley"
     }
+    #[inline]
     fn start(&mut self, stream: u64, index: u64) {
-        self.stream = stream;
+        restart(self.seed, &mut self.stream, &mut self.key, stream);
         self.index = index;
         self.dim = 0;
-        self.fallback.start(stream, index);
     }
+    #[inline]
     fn set_dimension(&mut self, dim: u32) {
         self.dim = dim;
-        if dim as usize > PRIMES.len() {
-            self.fallback.set_dimension(dim);
-        }
     }
     fn dimension(&self) -> u32 {
         self.dim
@@ -76,14 +71,13 @@ impl Sampler for HammersleySampler {
     fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         self.dim = self.dim.saturating_add(1);
-        if (d as usize) <= PRIMES.len() {
-            self.value(d)
-        } else {
-            if d as usize == PRIMES.len() + 1 {
-                self.fallback.set_dimension(d);
-            }
-            self.fallback.next_1d()
-        }
+        self.value(d)
+    }
+    #[inline]
+    fn next_2d(&mut self) -> [f32; 2] {
+        let d = self.dim;
+        self.dim = self.dim.saturating_add(2);
+        [self.value(d), self.value(d.saturating_add(1))]
     }
     fn clone_box(&self) -> Box<dyn Sampler> {
         Box::new(self.clone())

@@ -1,4 +1,5 @@
-//! Sample generators (plug-ins chosen by name: `random`, `halton`, `hammersley`).
+//! Sample generators (plug-ins chosen by name: `random`, `halton`, `hammersley`,
+//! `sobol`).
 //!
 //! Every value is a pure function of (seed, stream, sample index, dimension): a
 //! *stream* is a pixel (y·width + x) for the render pass or a light-path id for the
@@ -10,7 +11,9 @@
 
 pub mod halton;
 pub mod hammersley;
+pub mod radical;
 pub mod random;
+pub mod sobol;
 
 use crate::math::mix64;
 use anyhow::{Result, bail};
@@ -64,25 +67,24 @@ pub trait Sampler: Send + Sync {
     fn clone_box(&self) -> Box<dyn Sampler>;
 }
 
-/// Per-(seed, stream, dimension) uniform shift in [0,1) for Cranley–Patterson rotation.
+/// Key of a (seed, stream) pair, computed once per stream: per-dimension hashes
+/// derive from it with one [`mix64`] each (with salt 0, the same hash as the
+/// per-(seed, stream, dimension) rotations of earlier versions).
 #[inline]
-pub(crate) fn cp_shift(seed: u64, stream: u64, dim: u32) -> f64 {
-    let h = mix64(
-        mix64(seed ^ 0xA076_1D64_78BD_642F)
-            ^ mix64(stream.wrapping_add(0xE703_7ED1_A0B4_28DB))
-            ^ (dim as u64).wrapping_mul(0x8EBC_6AF0_9C88_C6E3),
-    );
-    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+pub(crate) fn stream_key(seed: u64, stream: u64) -> u64 {
+    mix64(seed ^ 0xA076_1D64_78BD_642F) ^ mix64(stream.wrapping_add(0xE703_7ED1_A0B4_28DB))
 }
 
-/// Adds a rotation modulo 1 and rounds into [0, 1).
+/// Hash of (stream key, dimension, salt): one mixing round.
 #[inline]
-pub(crate) fn rotate(x: f64, shift: f64) -> f32 {
-    let mut v = x + shift;
-    if v >= 1.0 {
-        v -= 1.0;
-    }
-    (v as f32).min(crate::math::ONE_MINUS_EPSILON)
+pub(crate) fn dim_hash(key: u64, dim: u32, salt: u64) -> u64 {
+    mix64(key ^ (dim as u64).wrapping_mul(0x8EBC_6AF0_9C88_C6E3) ^ salt)
+}
+
+/// A 32-bit fixed-point fraction as an f32 in [0, 1) (its 24 high bits, exact).
+#[inline]
+pub(crate) fn frac_to_f32(x: u32) -> f32 {
+    crate::math::u32_to_unit(x)
 }
 
 /// First primes, one base per low-discrepancy dimension.
@@ -112,48 +114,8 @@ pub fn radical_inverse(base: u32, mut index: u64) -> f64 {
     (rev as f64 * inv_n).min(1.0 - f64::EPSILON)
 }
 
-/// Radical inverse with a digit permutation `perm` (of 0..base) applied to every digit,
-/// including the infinite tail of leading zeros (as pbrt does).
-#[inline]
-pub fn scrambled_radical_inverse(base: u32, perm: &[u16], mut index: u64) -> f64 {
-    let b = base as u64;
-    let inv = 1.0 / base as f64;
-    let mut rev: u64 = 0;
-    let mut inv_n = 1.0f64;
-    // Enough digits for the f64 mantissa.
-    let digits = (53.0 / (base as f64).log2()).ceil() as u32;
-    for _ in 0..digits {
-        let next = index / b;
-        let digit = index - next * b;
-        rev = rev * b + perm[digit as usize] as u64;
-        inv_n *= inv;
-        index = next;
-        if rev > (1u64 << 52) {
-            break;
-        }
-    }
-    (rev as f64 * inv_n).min(1.0 - f64::EPSILON)
-}
-
-/// Random digit permutations for the first `dims` prime bases, from `seed`.
-pub(crate) fn digit_permutations(seed: u64, dims: usize) -> Vec<Vec<u16>> {
-    (0..dims)
-        .map(|d| {
-            let base = PRIMES[d] as usize;
-            let mut p: Vec<u16> = (0..base as u16).collect();
-            let mut s = mix64(seed ^ (d as u64).wrapping_mul(0x9E37_79B9));
-            for i in (1..base).rev() {
-                s = mix64(s);
-                let j = (s % (i as u64 + 1)) as usize;
-                p.swap(i, j);
-            }
-            p
-        })
-        .collect()
-}
-
 /// Sampler names.
-pub const NAMES: &[&str] = &["random", "halton", "hammersley"];
+pub const NAMES: &[&str] = &["random", "halton", "hammersley", "sobol"];
 
 /// Builds a sampler. `count` is the number of samples per stream when known up
 /// front (required by `hammersley`).
@@ -161,8 +123,9 @@ pub fn make(name: &str, seed: u64, count: Option<u64>) -> Result<Box<dyn Sampler
     Ok(match name {
         "random" => Box::new(random::RandomSampler::new(seed)),
         "halton" => Box::new(halton::HaltonSampler::new(seed)),
+        "sobol" => Box::new(sobol::SobolSampler::new(seed)),
         "hammersley" => match count {
-            Some(n) => Box::new(hammersley::HammersleySampler::new(seed, n).map_err(anyhow::Error::msg)?),
+            Some(n) => Box::new(hammersley::HammersleySampler::new(seed, n)?),
             None => bail!("sampler `hammersley` needs the sample count up front, which is unknown here; use `halton` or `random`"),
         },
         _ => bail!("unknown sampler `{name}` (known: {})", NAMES.join(", ")),
@@ -188,14 +151,6 @@ mod tests {
             assert!((a - b).abs() < 1e-12);
         }
         assert!((radical_inverse(5, 7) - (2.0 / 5.0 + 1.0 / 25.0)).abs() < 1e-12);
-    }
-
-    #[test]
-    fn identity_permutation_matches_plain() {
-        let id: Vec<u16> = (0..3).collect();
-        for i in 0..100 {
-            assert!((scrambled_radical_inverse(3, &id, i) - radical_inverse(3, i)).abs() < 1e-9);
-        }
     }
 
     #[test]

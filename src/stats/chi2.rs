@@ -9,6 +9,11 @@
 //! mirror: always reflect) are tested on their categories. Every p-value is compared
 //! with a Šidák-corrected level that keeps the family-wise level at [`ALPHA`].
 //! Planted controls test correct samples against a wrong pdf; they must fail.
+//! Rows `chi2/sobol/…` draw from the `sobol` sampler at the dimensions the path
+//! integrator uses (one stream, sample index i), with their own planted control; the
+//! others from `random`. Low-discrepancy counts are more even than multinomial ones,
+//! so their statistic sits far below the chi-square law (p ≈ 1): the p-value is not
+//! calibrated there, but a wrong pdf still gives a huge statistic.
 
 use super::{FamilyReport, Outcome, Settings, TestRow, sidak};
 use crate::light::LightSet;
@@ -16,8 +21,9 @@ use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Material, Mirror, Sh
 use crate::math::{Color, Frame, cosine_hemisphere, cosine_hemisphere_pdf, reflect};
 use crate::photon::emit::emit_photon;
 use crate::plot::{LinePlot, Series};
-use crate::sampler::Sampler;
 use crate::sampler::random::RandomSampler;
+use crate::sampler::sobol::SobolSampler;
+use crate::sampler::{BOUNCE_BSDF_DIR, BOUNCE_BSDF_LOBE, Sampler, bounce_dim};
 use crate::scene::{Face, LightDesc, MeshData, Placement, Scene};
 use anyhow::Result;
 use glam::Vec3;
@@ -184,6 +190,22 @@ fn integrate(f: &PdfFn, frame: &Frame, c: Cell, depth: u32, min_depth: u32) -> f
 
 /// Samples a direction case and integrates its pdf over the same bins.
 pub fn histogram(case: &DirCase, stream: u64, n: usize, n_theta: usize, n_phi: usize) -> Histogram {
+    histogram_with(case, stream, n, n_theta, n_phi, &RandomSampler::new(SEED), false)
+}
+
+/// As [`histogram`], drawing from a copy of `sampler`; with `layout`, the draws sit
+/// where the path integrator puts a bounce's lobe choice and BSDF direction when
+/// `bounce_layout` (`bounce_dim(0) + BOUNCE_BSDF_LOBE`, then the 2-D direction),
+/// otherwise at dimensions 0–2.
+pub fn histogram_with(
+    case: &DirCase,
+    stream: u64,
+    n: usize,
+    n_theta: usize,
+    n_phi: usize,
+    sampler: &dyn Sampler,
+    bounce_layout: bool,
+) -> Histogram {
     let nb = n_theta * n_phi;
     let (tmax, dphi) = (case.theta_max, 2.0 * PI / n_phi as f64);
     let chunks = n.div_ceil(CHUNK);
@@ -191,9 +213,12 @@ pub fn histogram(case: &DirCase, stream: u64, n: usize, n_theta: usize, n_phi: u
         .into_par_iter()
         .map(|c| {
             let mut h = vec![0u64; nb + 2];
-            let mut s = RandomSampler::new(SEED);
+            let mut s = sampler.clone_box();
             for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
                 s.start(stream, i as u64);
+                if bounce_layout {
+                    s.set_dimension(bounce_dim(0) + BOUNCE_BSDF_LOBE);
+                }
                 let ul = s.next_1d();
                 let u = s.next_2d();
                 let Some(w) = (case.sample)(ul, u).filter(|w| w.is_finite() && w.length_squared() > 0.0) else {
@@ -596,6 +621,44 @@ pub fn direction_cases(s: &Settings) -> Result<Vec<DirCase>> {
     Ok(v)
 }
 
+/// Cases drawn with the `sobol` sampler: cosine-weighted hemisphere, a Phong lobe
+/// and, planted, cosine samples against the uniform-hemisphere pdf.
+fn sobol_cases() -> Vec<DirCase> {
+    let z = Frame::new(Vec3::Z);
+    let wo = from_theta(30.0);
+    let b = phong(0.0, 1.0, 10.0);
+    vec![
+        DirCase {
+            name: "chi2/sobol/cosine_hemisphere".into(),
+            expected: Outcome::Pass,
+            frame: z,
+            theta_max: PI,
+            can_fail: false,
+            sample: Box::new(|_, u| Some(cosine_hemisphere(u))),
+            pdf: Box::new(|w| cosine_hemisphere_pdf(w.z) as f64),
+        },
+        bsdf_case(
+            "chi2/sobol/phong/n10",
+            b.clone(),
+            b,
+            flat(),
+            wo,
+            Frame::new(Vec3::new(-wo.x, -wo.y, wo.z)),
+            lobe_theta(10.0),
+            Outcome::Pass,
+        ),
+        DirCase {
+            name: "chi2/planted/sobol/cosine_vs_uniform_pdf".into(),
+            expected: Outcome::Fail,
+            frame: z,
+            theta_max: PI,
+            can_fail: false,
+            sample: Box::new(|_, u| Some(cosine_hemisphere(u))),
+            pdf: Box::new(|w| if w.z > 0.0 { 1.0 / (2.0 * PI) } else { 0.0 }),
+        },
+    ]
+}
+
 /// Unpolarised Fresnel reflectance (an independent implementation, the oracle of the
 /// glass test): light arriving with cosine `cos_i` from index `eta_i` into `eta_t`.
 pub fn fresnel(cos_i: f64, eta_i: f64, eta_t: f64) -> f64 {
@@ -671,6 +734,13 @@ pub fn run(s: &Settings) -> Result<FamilyReport> {
         if c.name == "chi2/phong/n10" || c.name == "chi2/planted/phong_n10_vs_pdf_n11" {
             marginals.push((c.name.clone(), c.theta_max, h.theta_marginals()));
         }
+        results.push((c.name.clone(), c.expected, chi2_test(&h.observed, &h.expected)));
+    }
+    // The `sobol` sampler as the path integrator draws it (lobe, then direction).
+    const _: () = assert!(BOUNCE_BSDF_DIR == BOUNCE_BSDF_LOBE + 1);
+    let sobol = SobolSampler::new(SEED);
+    for (i, c) in sobol_cases().iter().enumerate() {
+        let h = histogram_with(c, 1000 + i as u64, n, nt, np, &sobol, true);
         results.push((c.name.clone(), c.expected, chi2_test(&h.observed, &h.expected)));
     }
     let (_, scene, lights, q) = area_emission_case()?;
