@@ -12,7 +12,7 @@
 //! adds them and divides by the sample count once, in f64, then rounds to f32. Any
 //! split of 0..N into parts therefore gives the same bits.
 //!
-//! Against a single [`crate::render::render`] (which sums the f32 samples in f64 in
+//! Against a single [`crate::integrator::render::render`] (which sums the f32 samples in f64 in
 //! index order): both means are within a relative (N + 1)·2⁻⁵³ plus an absolute
 //! 2⁻⁶⁰ of the exact mean of the samples, so (N ≤ [`MAX_SPP`] = 2²⁶) the two f32 images
 //! differ by at most one f32 ulp per channel, plus 2⁻⁶⁰ absolute (tested).
@@ -20,9 +20,10 @@
 use crate::config::RenderConfig;
 use crate::film::{Film, write_atomic};
 use crate::integrator::Integrator;
+use crate::integrator::render::{RenderStats, TILE};
 use crate::math::is_finite;
 use crate::pipeline::{Prepared, Timings, configured_scene, prepare, thread_pool};
-use crate::render::{RenderStats, TILE, progress_bar};
+use crate::progress::progress_bar;
 use crate::sampler::{DIM_PIXEL, Sampler};
 use crate::scene::Scene;
 use crate::world::World;

@@ -10,8 +10,8 @@
 //! scene and integrator (so `--samplers random,halton,...` prints halton/random).
 
 use crate::config::RenderConfig;
+use crate::integrator::render::render;
 use crate::pipeline::{configured_scene, prepare, thread_pool};
-use crate::render::render;
 use crate::scene::builtin::builtin;
 use anyhow::{Result, bail};
 use clap::Args;

@@ -331,7 +331,7 @@ pub fn run(args: &RunArgs) -> Result<RunReport> {
         let shard = args.shard.map_or(String::new(), |s| format!(" (shard {}/{})", s.index, s.count));
         eprintln!("{}: {} cells{shard}, {kept} already finished, {} to run → {}", m.name, mine.len(), todo.len(), out.display());
     }
-    let pb = crate::render::progress_bar(todo.len() as u64, args.quiet, "cells");
+    let pb = crate::progress::progress_bar(todo.len() as u64, args.quiet, "cells");
     pb.enable_steady_tick(std::time::Duration::from_millis(500));
     for (i, c) in todo.iter().enumerate() {
         pb.set_message(format!("cells ({})", c.stem));

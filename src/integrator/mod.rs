@@ -4,13 +4,14 @@ pub mod path;
 pub mod photon;
 pub mod ppm;
 pub mod progressive;
+pub mod render;
 pub mod sppm;
 
 use crate::accel::TraversalStats;
 use crate::film::Film;
 use crate::geometry::Ray;
+use crate::integrator::render::RenderStats;
 use crate::math::Color;
-use crate::render::RenderStats;
 use crate::sampler::Sampler;
 use crate::world::World;
 use std::collections::BTreeMap;

@@ -21,8 +21,8 @@ use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
 use crate::geometry::Ray;
+use crate::integrator::render::{RenderStats, render};
 use crate::math::{Color, hash_words};
-use crate::render::{RenderStats, render};
 use crate::sampler::Sampler;
 use crate::world::World;
 use anyhow::Result;
@@ -106,7 +106,7 @@ impl PpmIntegrator {
             let inv = 1.0 / pass.max(1) as f64;
             film.pixels.par_iter_mut().zip(sum.par_iter()).for_each(|(o, s)| *o = (*s * inv).as_vec3());
         }
-        let pb = crate::render::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "ppm");
+        let pb = crate::progress::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "ppm");
         while budget.more(pass) {
             let i = pass + 1;
             let (pcfg, setup) = pass_setup(&self.cfg, &self.photon, &self.prog, i, r2.sqrt() as f32, rc2.sqrt() as f32, has_specular);

@@ -33,10 +33,10 @@ use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
 use crate::geometry::Ray;
+use crate::integrator::render::RenderStats;
 use crate::material::{ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
 use crate::photon::{MapKind, RawPhoton, trace_path};
-use crate::render::RenderStats;
 use crate::rr::{RrContext, RussianRoulette, roulette};
 use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
 use crate::world::World;
@@ -295,7 +295,8 @@ impl SppmIntegrator {
             pass = done;
             film.pixels.par_iter_mut().zip(pixels.par_iter()).for_each(|(o, px)| *o = px.radiance(pass, m));
         }
-        let pb = crate::render::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "sppm");
+        let pb =
+            crate::progress::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "sppm");
         while budget.more(pass) {
             // 1. Camera pass.
             let t0 = Instant::now();

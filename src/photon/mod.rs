@@ -236,7 +236,7 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
     let limit = s.fixed_emit.unwrap_or(s.max_emitted);
     let mut emitted = 0u64;
     let mut rays = TraversalStats::default();
-    let pb = crate::render::progress_bar(limit.min((s.global_photons + s.caustic_photons) as u64 * 4), quiet, "photons");
+    let pb = crate::progress::progress_bar(limit.min((s.global_photons + s.caustic_photons) as u64 * 4), quiet, "photons");
     while emitted < limit && (s.fixed_emit.is_some() || !(global_done && caustic_done)) {
         let n = BATCH.min(limit - emitted);
         let results: Vec<(Vec<RawPhoton>, TraversalStats)> = (0..n as usize)

@@ -297,7 +297,7 @@ impl IrradianceCache {
         // Angle subtended by one pixel at the image centre.
         let pixel_angle = 2.0 * (0.5 * cam.fov_y_deg.to_radians()).tan() / h as f32;
         let strides = [16u32, 8, 4, 2, 1];
-        let pb = crate::render::progress_bar(strides.len() as u64, quiet, "cache prefill");
+        let pb = crate::progress::progress_bar(strides.len() as u64, quiet, "cache prefill");
         for s in strides {
             let pixels: Vec<(u32, u32)> =
                 (0..h).step_by(s as usize).flat_map(|y| (0..w).step_by(s as usize).map(move |x| (x, y))).collect();

@@ -1,14 +1,14 @@
 //! The render pass: image tiles in parallel (rayon); each pixel's samples depend only
 //! on (seed, pixel, sample index), so the image is bit-identical for any thread count.
 
+use super::Integrator;
 use crate::accel::TraversalStats;
 use crate::film::Film;
-use crate::integrator::Integrator;
 use crate::math::{Color, is_finite};
+use crate::progress::progress_bar;
 use crate::sampler::{DIM_PIXEL, Sampler};
 use crate::world::World;
 use glam::DVec3;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -24,18 +24,6 @@ pub struct RenderStats {
     pub nonfinite_samples: u64,
     /// Wall time of the pass.
     pub seconds: f64,
-}
-
-/// A progress bar on stderr, hidden when stderr is not a terminal or when `quiet`.
-pub fn progress_bar(len: u64, quiet: bool, what: &str) -> ProgressBar {
-    let pb = ProgressBar::with_draw_target(Some(len), if quiet { ProgressDrawTarget::hidden() } else { ProgressDrawTarget::stderr() });
-    pb.set_style(
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    pb.set_message(what.to_string());
-    pb
 }
 
 /// Renders `spp` samples per pixel with the integrator. `sampler` is a prototype,
