@@ -185,8 +185,8 @@ fn irradiance_r2(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, h
 /// fraction, however many photons there are at that radius. Here `area_probes` points
 /// spread evenly over the disc (golden-angle spiral, rotated by `seed`) each cast a
 /// segment along −n through the ±`disc` × `max_radius` slab the photon filter keeps;
-/// the first surface met whose normal passes the photon filter's test (|n_h·n| ≥
-/// `normal_cos`) and that lies inside the sphere counts with the kernel weight at its
+/// the first non-specular surface met whose normal passes the photon filter's test
+/// (|n_h·n| ≥ `normal_cos`) and that lies inside the sphere counts with the kernel weight at its
 /// distance and 1/|n_h·n| (true area per projected area). Returns that sum over the
 /// same sum for a flat surface filling the disc, in [1/20, 2]; 1 when probing is off.
 pub fn coverage(world: &World, p: Vec3, n: Vec3, r2: f32, prm: &EstimateParams, seed: u64, stats: &mut TraversalStats) -> f32 {
@@ -206,18 +206,20 @@ pub fn coverage(world: &World, p: Vec3, n: Vec3, r2: f32, prm: &EstimateParams, 
         let x = p + (frame.s * phi.cos() + frame.t * phi.sin()) * (r * s2.sqrt());
         let mut o = x + n * thick;
         let mut left = 2.0 * thick;
-        for _ in 0..3 {
+        for _ in 0..4 {
             let Some(hit) = world.accel.intersect(&Ray::new(o, -n), left, stats) else { break };
             let it = world.interaction(&Ray::new(o, -n), &hit);
             let cos = it.sp.ng.dot(n).abs();
-            if cos >= prm.normal_cos {
+            // Mirrors and glass hold no photons, and a surface outside the sphere (the
+            // far side of an object standing on the surface) hides none of the area
+            // inside it: look past both.
+            if cos >= prm.normal_cos && !world.material(&it).bsdf.is_delta() {
                 let d2 = (it.p - p).length_squared();
                 if d2 < r2 {
                     got += prm.filter.weight(d2 / r2) / cos;
+                    break;
                 }
-                break;
             }
-            // A surface the photon filter rejects (e.g. across the probe): look past it.
             let step = hit.t + 1e-4 * r;
             o -= n * step;
             left -= step;
