@@ -6,7 +6,9 @@
 use super::estimate::{self, EstimateParams, with_heap};
 use super::kdtree::{KdPoint, KdTree};
 use super::record::Photon;
+use crate::accel::TraversalStats;
 use crate::math::Color;
+use crate::world::World;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -29,13 +31,19 @@ impl KdPoint for IrradiancePoint {
 
 /// Computes irradiance at every `stride`-th photon of `global` (in parallel; the
 /// result is independent of the thread count).
-pub fn precompute(global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) -> KdTree<IrradiancePoint> {
+///
+/// With `prm.area_probes` > 0 each estimate divides by the area of surface inside its
+/// region rather than the disc's ([`estimate::coverage`]), so points on thin or
+/// curved geometry and near edges are not darkened by the part of the disc that
+/// holds no surface.
+pub fn precompute(world: &World, global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) -> KdTree<IrradiancePoint> {
     let pts: Vec<IrradiancePoint> = (0..global.len())
         .into_par_iter()
         .step_by(stride.max(1))
         .map(|i| {
             let (n, pos) = (global.points[i].normal(), global.position(i));
-            let e = with_heap(|h| estimate::irradiance(global, pos, n, prm, h));
+            let mut stats = TraversalStats::default();
+            let e = with_heap(|h| estimate::irradiance_covered(world, global, pos, n, prm, h, &mut stats));
             IrradiancePoint { pos, normal: n, irradiance: e }
         })
         .collect();

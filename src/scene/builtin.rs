@@ -14,7 +14,7 @@ use glam::Vec3;
 
 /// Names of the built-in scenes.
 pub const BUILTINS: &[&str] =
-    &["cornell", "cornell-glass", "cornell-glossy", "cornell-contact", "leaky-box", "furnace", "displaced-sphere"];
+    &["cornell", "cornell-glass", "cornell-glossy", "cornell-contact", "leaky-box", "sun-slats", "furnace", "displaced-sphere"];
 
 /// Builds a built-in scene by name.
 pub fn builtin(name: &str) -> Result<Scene> {
@@ -24,6 +24,7 @@ pub fn builtin(name: &str) -> Result<Scene> {
         "cornell-glossy" => Ok(cornell_glossy()),
         "cornell-contact" => Ok(cornell_contact()),
         "leaky-box" => Ok(leaky_box()),
+        "sun-slats" => Ok(sun_slats()),
         "furnace" => Ok(furnace(0.5, 1.0, 24)),
         "displaced-sphere" => Ok(displaced_sphere(710)),
         _ => bail!("unknown built-in scene `{name}` (known: {})", BUILTINS.join(", ")),
@@ -226,6 +227,27 @@ pub fn leaky_box() -> Scene {
     s
 }
 
+/// Thin geometry lit by a sun (boundary bias of photon estimates): a white wall
+/// (z = 0, facing +z) and five narrow white slats (8 cm deep, staggered so none
+/// shades another) in front of it, in an otherwise empty scene, under a directional
+/// light shining straight down. The wall gets no direct light (the sun grazes it); all
+/// of its light is reflected from the slats' sunlit tops, whose photon estimates use
+/// discs wider than the slats.
+pub fn sun_slats() -> Scene {
+    let mut m = MeshData { materials: vec![Material::diffuse("white", Color::splat(0.8))], ..Default::default() };
+    add_quads(&mut m, &[[[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0], [-1.0, 2.0, 0.0]]], 0);
+    for i in 0..5 {
+        let (y, z0) = (0.2 + 0.35 * i as f32, 0.05 + 0.1 * i as f32);
+        let z1 = z0 + 0.08;
+        add_quads(&mut m, &[[[-1.0, y, z0], [-1.0, y, z1], [1.0, y, z1], [1.0, y, z0]]], 0);
+    }
+    let cam = Camera::new(Vec3::new(0.0, 1.0, 3.0), Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 45.0, 64, 64).expect("valid camera");
+    let mut s = Scene::new("sun-slats", cam);
+    s.add_mesh(&m, &Placement::default(), None).expect("slat geometry is valid");
+    s.lights.push(crate::light::LightDesc::Directional { direction: Vec3::new(0.0, -1.0, 0.0), irradiance: Color::splat(3.0) });
+    s
+}
+
 /// The six faces of the cube [-1, 1]³, wound outward.
 fn unit_cube_quads() -> [[[f32; 3]; 4]; 6] {
     [
@@ -326,7 +348,7 @@ mod tests {
 
     #[test]
     fn new_scenes_are_valid() {
-        for name in ["cornell-glossy", "cornell-contact", "leaky-box"] {
+        for name in ["cornell-glossy", "cornell-contact", "leaky-box", "sun-slats"] {
             let s = builtin(name).unwrap();
             assert!(s.validate().is_ok(), "{name}");
         }

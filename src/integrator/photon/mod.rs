@@ -99,6 +99,8 @@ crate::params! {
         filter: String = "cone",
         /// Photons (and precomputed points) must lie within ±disc × radius of the tangent plane and have arrived on the side the estimate looks from (corners, thin walls); ≥ 1 disables the plane test.
         disc: f32 = "0.25",
+        /// Rays per precomputed-irradiance estimate that measure the surface area inside the estimate's disc (thin and curved geometry, edges: the boundary-bias correction); 0 divides by π r² as plain photon mapping does.
+        area_probes: u32 = "32",
     }
 }
 
@@ -294,7 +296,8 @@ impl Integrator for PhotonIntegrator {
         self.times.insert("kdtree_build_s".into(), maps.build_s + t_global.elapsed().as_secs_f64());
         let est_global = EstimateParams::new(p.k as usize, max_radius, filter, p.disc);
         let est_caustic = EstimateParams::new(p.caustic_k as usize, caustic_radius, filter, p.disc);
-        let pre = self.setup.gather.precompute_stride().map(|stride| irradiance::precompute(&global, stride, &est_global));
+        let est_pre = est_global.with_area_probes(p.area_probes);
+        let pre = self.setup.gather.precompute_stride().map(|stride| irradiance::precompute(world, &global, stride, &est_pre));
         self.times.insert("precompute_s".into(), t1.elapsed().as_secs_f64());
         let mut counts = vec![gp.gather_samples];
         for _ in 1..gp.gather_bounces {
