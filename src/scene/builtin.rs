@@ -244,7 +244,7 @@ pub fn sun_slats() -> Scene {
     let cam = Camera::new(Vec3::new(0.0, 1.0, 3.0), Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 45.0, 64, 64).expect("valid camera");
     let mut s = Scene::new("sun-slats", cam);
     s.add_mesh(&m, &Placement::default(), None).expect("slat geometry is valid");
-    s.lights.push(crate::light::LightDesc::Directional { direction: Vec3::new(0.0, -1.0, 0.0), irradiance: Color::splat(3.0) });
+    s.lights.push(crate::scene::LightDesc::Directional { direction: Vec3::new(0.0, -1.0, 0.0), irradiance: Color::splat(3.0) });
     s
 }
 
