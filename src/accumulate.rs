@@ -20,7 +20,7 @@
 use crate::config::RenderConfig;
 use crate::film::{Film, write_atomic};
 use crate::integrator::Integrator;
-use crate::integrator::render::{RenderStats, TILE};
+use crate::integrator::render::{RenderStats, TILE, scatter_tile};
 use crate::math::is_finite;
 use crate::pipeline::{Prepared, Timings, configured_scene, prepare, thread_pool};
 use crate::progress::progress_bar;
@@ -247,16 +247,7 @@ pub fn render_range(
     let mut stats = RenderStats::default();
     let mut too_large = 0;
     for (t, (pixels, st, bad, big)) in results.into_iter().enumerate() {
-        let t = t as u32;
-        let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
-        let x1 = (x0 + TILE).min(w);
-        let mut k = 0;
-        for y in y0..(y0 + TILE).min(h) {
-            for x in x0..x1 {
-                sums[(y * w + x) as usize] = pixels[k];
-                k += 1;
-            }
-        }
+        scatter_tile(&mut sums, w, h, t as u32, &pixels);
         stats.traversal.add(&st);
         stats.nonfinite_samples += bad;
         too_large += big;

@@ -72,19 +72,25 @@ pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler,
     let mut film = Film::new(w, h);
     let mut stats = RenderStats::default();
     for (t, (pixels, st, bad)) in results.into_iter().enumerate() {
-        let t = t as u32;
-        let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
-        let x1 = (x0 + TILE).min(w);
-        let mut k = 0;
-        for y in y0..(y0 + TILE).min(h) {
-            for x in x0..x1 {
-                film.pixels[(y * w + x) as usize] = pixels[k];
-                k += 1;
-            }
-        }
+        scatter_tile(&mut film.pixels, w, h, t as u32, &pixels);
         stats.traversal.add(&st);
         stats.nonfinite_samples += bad;
     }
     stats.seconds = start.elapsed().as_secs_f64();
     (film, stats)
+}
+
+/// Copies the pixels of tile `t` (row-major inside the tile, tiles row-major over the
+/// image) into the `w` × `h` image `out`.
+pub fn scatter_tile<T: Copy>(out: &mut [T], w: u32, h: u32, t: u32, pixels: &[T]) {
+    let tiles_x = w.div_ceil(TILE);
+    let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
+    let x1 = (x0 + TILE).min(w);
+    let mut k = 0;
+    for y in y0..(y0 + TILE).min(h) {
+        for x in x0..x1 {
+            out[(y * w + x) as usize] = pixels[k];
+            k += 1;
+        }
+    }
 }

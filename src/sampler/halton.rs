@@ -76,31 +76,10 @@ impl Sampler for HaltonSampler {
         self.index = index;
         self.dim = 0;
     }
-    #[inline]
-    fn set_dimension(&mut self, dim: u32) {
-        self.dim = dim;
-    }
-    fn dimension(&self) -> u32 {
-        self.dim
-    }
     fn current(&self) -> (u64, u64) {
         (self.stream, self.index)
     }
-    #[inline]
-    fn next_1d(&mut self) -> f32 {
-        let d = self.dim;
-        self.dim = self.dim.saturating_add(1);
-        self.value(d)
-    }
-    #[inline]
-    fn next_2d(&mut self) -> [f32; 2] {
-        let d = self.dim;
-        self.dim = self.dim.saturating_add(2);
-        [self.value(d), self.value(d.saturating_add(1))]
-    }
-    fn clone_box(&self) -> Box<dyn Sampler> {
-        Box::new(self.clone())
-    }
+    super::dimension_methods!();
 }
 
 #[cfg(test)]

@@ -67,6 +67,38 @@ pub trait Sampler: Send + Sync {
     fn clone_box(&self) -> Box<dyn Sampler>;
 }
 
+/// The [`Sampler`] methods of a sampler whose values are a pure function of the
+/// dimension (its `value(d)` and `dim` field): dimension bookkeeping, `next_1d`,
+/// `next_2d` and `clone_box`. Used inside `impl Sampler for …` by `halton`,
+/// `hammersley` and `sobol`.
+macro_rules! dimension_methods {
+    () => {
+        #[inline]
+        fn set_dimension(&mut self, dim: u32) {
+            self.dim = dim;
+        }
+        fn dimension(&self) -> u32 {
+            self.dim
+        }
+        #[inline]
+        fn next_1d(&mut self) -> f32 {
+            let d = self.dim;
+            self.dim = self.dim.saturating_add(1);
+            self.value(d)
+        }
+        #[inline]
+        fn next_2d(&mut self) -> [f32; 2] {
+            let d = self.dim;
+            self.dim = self.dim.saturating_add(2);
+            [self.value(d), self.value(d.saturating_add(1))]
+        }
+        fn clone_box(&self) -> Box<dyn Sampler> {
+            Box::new(self.clone())
+        }
+    };
+}
+pub(crate) use dimension_methods;
+
 /// Key of a (seed, stream) pair, computed once per stream: per-dimension hashes
 /// derive from it with one [`mix64`] each (with salt 0, the same hash as the
 /// per-(seed, stream, dimension) rotations of earlier versions).

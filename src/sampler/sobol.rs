@@ -244,31 +244,10 @@ impl Sampler for SobolSampler {
         self.dim = 0;
         self.group = u32::MAX;
     }
-    #[inline]
-    fn set_dimension(&mut self, dim: u32) {
-        self.dim = dim;
-    }
-    fn dimension(&self) -> u32 {
-        self.dim
-    }
     fn current(&self) -> (u64, u64) {
         (self.stream, (self.high << 32) | self.index as u64)
     }
-    #[inline]
-    fn next_1d(&mut self) -> f32 {
-        let d = self.dim;
-        self.dim = self.dim.saturating_add(1);
-        self.value(d)
-    }
-    #[inline]
-    fn next_2d(&mut self) -> [f32; 2] {
-        let d = self.dim;
-        self.dim = self.dim.saturating_add(2);
-        [self.value(d), self.value(d.saturating_add(1))]
-    }
-    fn clone_box(&self) -> Box<dyn Sampler> {
-        Box::new(self.clone())
-    }
+    super::dimension_methods!();
 }
 
 #[cfg(test)]
