@@ -20,7 +20,7 @@ crate::params! {
     pub struct ProgressiveParams {
         /// Passes to run; `auto` = 16, or unbounded when `time_limit` is set.
         passes: Option<u32> = "auto",
-        /// Photon paths emitted per pass; `auto`: `sppm` 131072, `ppm` fills `photons` / `caustic_photons` every pass.
+        /// Photon paths emitted per pass; `auto`: `sppm` 2 per pixel, `ppm` fills `photons` / `caustic_photons` every pass.
         photons_per_pass: Option<u64> = "auto",
         /// Radius-reduction parameter α ∈ (0, 1] (1 = the radius never shrinks).
         alpha: f32 = "2/3",

@@ -6,10 +6,11 @@
 //!    directly or through mirrors and glass count fully; delta surfaces are followed
 //!    by sampling one lobe; at the first non-delta (diffuse or glossy) surface the
 //!    path stops and leaves a *visible point* (position, `wo`, BSDF, throughput β).
-//!    Direct light is added there by `direct_samples` shadow rays, stratified by
+//!    Direct light is added there by `direct_samples` shadow rays (one unless set, as
+//!    pbrt-v4's one light sample per pass), stratified by
 //!    `direct_sampler` (`sppm_direct = "trace"`), or left to the photons (`"photons"`).
-//! 2. **Photon pass.** `photons_per_pass` photon paths (indices pass·M … pass·M + M − 1
-//!    of one emission sequence), traced by [`crate::photon::trace_path`]. Photon hits on
+//! 2. **Photon pass.** `photons_per_pass` photon paths (2 per pixel unless set;
+//!    indices pass·M … pass·M + M − 1 of one emission sequence), traced by [`crate::photon::trace_path`]. Photon hits on
 //!    non-delta surfaces after at least one bounce are kept (first hits too with
 //!    `"photons"`), in path order.
 //! 3. **Gather.** The kept photons go into a hash grid rebuilt per pass (cell edge =
@@ -46,10 +47,15 @@ use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-/// Photon paths per pass when `photons_per_pass` is unset.
-pub const DEFAULT_PHOTONS_PER_PASS: u64 = 1 << 17;
-/// Default initial radius as a fraction of the scene's bounding-sphere radius.
-pub const DEFAULT_RADIUS_FRACTION: f32 = 0.02;
+/// Photon paths per pass and pixel when `photons_per_pass` is unset (measured on
+/// `cornell` and `cornell-glass` at 128²: 2 beat 1, 4 and 8 per pixel at equal time).
+pub const DEFAULT_PHOTONS_PER_PIXEL: u64 = 2;
+/// Default initial radius as a fraction of the scene's bounding-sphere radius
+/// (measured: 0.03 beat 0.01, 0.02 and 0.06 at equal time on both scenes).
+pub const DEFAULT_RADIUS_FRACTION: f32 = 0.03;
+/// Shadow rays per visible point and pass when `direct_samples` is unset (pbrt-v4's
+/// one light sample per pass; more rays per pass did not lower the error per second).
+pub const DEFAULT_DIRECT_SAMPLES: u32 = 1;
 /// Smallest cosine between a photon's surface normal and the visible point's.
 pub const NORMAL_COS: f32 = 0.7;
 /// Photon paths traced per parallel work item.
@@ -58,7 +64,7 @@ const PHOTON_CHUNK: u64 = 1024;
 crate::params! {
     /// Parameters of the `sppm` integrator.
     pub struct SppmParams {
-        /// Initial per-pixel radius (scene units); `auto` = 0.02 × the scene's bounding radius.
+        /// Initial per-pixel radius (scene units); `auto` = 0.03 × the scene's bounding radius.
         sppm_radius: Option<f32> = "auto",
         /// Direct light by `trace` (shadow rays at the visible point) or `photons`.
         sppm_direct: String = "trace",
@@ -81,7 +87,10 @@ impl SppmSetup {
     pub fn read(cfg: &RenderConfig, r: &crate::param::Reader) -> Result<Self> {
         let prog = ProgressiveParams::read_checked(cfg, r)?;
         let p = SppmParams::read(r)?;
-        let direct = DirectParams::read_checked(r)?;
+        let mut direct = DirectParams::read_checked(r)?;
+        if !cfg.params.contains("direct_samples") {
+            direct.direct_samples = DEFAULT_DIRECT_SAMPLES;
+        }
         if !matches!(p.sppm_direct.as_str(), "trace" | "photons") {
             bail!("unknown sppm_direct `{}` (known: trace, photons)", p.sppm_direct);
         }
@@ -90,8 +99,9 @@ impl SppmSetup {
         {
             bail!("sppm_radius must be positive and finite, got {r}");
         }
-        let photons = prog.photons_per_pass.unwrap_or(DEFAULT_PHOTONS_PER_PASS);
-        if photons.saturating_mul(prog.passes.unwrap_or(1) as u64) > u32::MAX as u64 * 64 {
+        if let Some(photons) = prog.photons_per_pass
+            && photons.saturating_mul(prog.passes.unwrap_or(1) as u64) > u32::MAX as u64 * 64
+        {
             bail!("photons_per_pass × passes is too large ({photons} × {:?})", prog.passes);
         }
         Ok(SppmSetup { p, prog, direct })
@@ -186,8 +196,9 @@ impl SppmIntegrator {
         SppmIntegrator { cfg: cfg.clone(), set, rr, quiet, counters: BTreeMap::new() }
     }
 
-    fn photons_per_pass(&self) -> u64 {
-        self.set.prog.photons_per_pass.unwrap_or(DEFAULT_PHOTONS_PER_PASS)
+    /// Photon paths per pass: as set, or [`DEFAULT_PHOTONS_PER_PIXEL`] per pixel.
+    fn photons_per_pass(&self, npix: usize) -> u64 {
+        self.set.prog.photons_per_pass.unwrap_or((DEFAULT_PHOTONS_PER_PIXEL * npix as u64).max(1024))
     }
 
     /// Traces pixel (x, y)'s camera path of pass `pass`: emitted + direct radiance and
@@ -271,7 +282,10 @@ impl SppmIntegrator {
         let (w, h) = (cam.width, cam.height);
         let npix = (w * h) as usize;
         let budget = Budget::new(&self.set.prog);
-        let m = self.photons_per_pass();
+        let m = self.photons_per_pass(npix);
+        if budget.max_passes != u32::MAX && m.saturating_mul(budget.max_passes as u64) > u32::MAX as u64 * 64 {
+            bail!("photons per pass × passes is too large ({m} × {})", budget.max_passes);
+        }
         let alpha = self.set.prog.alpha as f64;
         let r0 = self.set.p.sppm_radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius) as f64;
         let counts = (budget.max_passes != u32::MAX).then_some(budget.max_passes as u64);
@@ -297,69 +311,82 @@ impl SppmIntegrator {
         }
         let pb =
             crate::progress::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "sppm");
+        // Buffers reused from pass to pass (no allocation per pass in the hot loops).
+        let mut vps: Vec<Option<VisiblePoint>> = vec![None; npix];
+        let mut flat: Vec<GridPhoton> = Vec::new();
+        let mut grid = PhotonGrid::default();
         while budget.more(pass) {
-            // 1. Camera pass.
+            // 1. Camera pass: rows in parallel, written in place.
             let t0 = Instant::now();
-            let rows: Vec<(Vec<CameraSample>, TraversalStats)> = (0..h)
-                .into_par_iter()
+            let (st, bad) = pixels
+                .par_chunks_mut(w as usize)
+                .zip(vps.par_chunks_mut(w as usize))
+                .enumerate()
                 .map_init(
                     || (cam_sampler.clone_box(), direct_sampler.clone_box()),
-                    |(s, ds), y| {
+                    |(s, ds), (y, (prow, vrow))| {
                         let mut st = TraversalStats::default();
-                        let row = (0..w).map(|x| self.camera_path(world, x, y, pass, s.as_mut(), ds.as_mut(), &mut st)).collect();
-                        (row, st)
+                        let mut bad = 0u64;
+                        for (x, (px, vp)) in prow.iter_mut().zip(vrow.iter_mut()).enumerate() {
+                            let (l, v) = self.camera_path(world, x as u32, y as u32, pass, s.as_mut(), ds.as_mut(), &mut st);
+                            if crate::math::is_finite(l) {
+                                px.ld += l.as_dvec3();
+                            } else {
+                                bad += 1;
+                            }
+                            *vp = v;
+                        }
+                        (st, bad)
                     },
                 )
-                .collect();
-            let mut vps: Vec<Option<VisiblePoint>> = Vec::with_capacity(npix);
-            for (row, st) in rows {
-                stats.traversal.add(&st);
-                for (l, vp) in row {
-                    if crate::math::is_finite(l) {
-                        pixels[vps.len()].ld += l.as_dvec3();
-                    } else {
-                        stats.nonfinite_samples += 1;
-                    }
-                    vps.push(vp);
-                }
-            }
+                .reduce(
+                    || (TraversalStats::default(), 0),
+                    |mut a, b| {
+                        a.0.add(&b.0);
+                        a.1 += b.1;
+                        a
+                    },
+                );
+            stats.traversal.add(&st);
+            stats.nonfinite_samples += bad;
             t_camera += t0.elapsed().as_secs_f64();
 
-            // 2. Photon pass.
+            // 2. Photon pass: chunks in parallel, merged in path order.
             let t1 = Instant::now();
             let first = pass as u64 * m;
             let chunks = m.div_ceil(PHOTON_CHUNK);
-            let traced: Vec<(Vec<RawPhoton>, TraversalStats)> = (0..chunks)
+            let traced: Vec<(Vec<GridPhoton>, TraversalStats)> = (0..chunks)
                 .into_par_iter()
                 .map_init(
-                    || emit_sampler.clone_box(),
-                    |s, c| {
-                        let mut out = Vec::new();
+                    || (emit_sampler.clone_box(), Vec::new()),
+                    |(s, raw), c| {
+                        raw.clear();
                         let mut st = TraversalStats::default();
                         for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
-                            trace_path(world, s.as_mut(), first + j, self.rr.as_ref(), self.cfg.depth_limit(), &mut st, &mut out);
+                            trace_path(world, s.as_mut(), first + j, self.rr.as_ref(), self.cfg.depth_limit(), &mut st, raw);
                         }
-                        out.retain(|p| keep_first || p.kind != MapKind::Direct);
+                        let out = raw.iter().filter(|p| keep_first || p.kind != MapKind::Direct).map(GridPhoton::from).collect();
                         (out, st)
                     },
                 )
                 .collect();
-            let mut photons = Vec::with_capacity(traced.iter().map(|t| t.0.len()).sum());
-            for (v, st) in traced {
-                photon_rays.add(&st);
-                photons.extend(v);
+            flat.clear();
+            for (v, st) in &traced {
+                photon_rays.add(st);
+                flat.extend_from_slice(v);
             }
-            kept_total += photons.len() as u64;
+            drop(traced);
+            kept_total += flat.len() as u64;
             t_photon += t1.elapsed().as_secs_f64();
 
             // 3. Gather into the visible points and 4. update.
             let t2 = Instant::now();
             let r_max = vps.iter().zip(&pixels).filter(|(v, _)| v.is_some()).map(|(_, p)| p.r).fold(0.0f64, f64::max);
-            if r_max > 0.0 && !photons.is_empty() {
-                let grid = PhotonGrid::build(&photons, (2.0 * r_max) as f32);
+            if r_max > 0.0 && !flat.is_empty() {
+                grid.build(&flat, (2.0 * r_max) as f32);
                 pixels.par_iter_mut().zip(vps.par_iter()).for_each(|(px, vp)| {
                     if let Some(vp) = vp {
-                        let (mm, phi) = gather(world, &grid, &photons, vp, px.r as f32);
+                        let (mm, phi) = gather(world, &grid, vp, px.r as f32);
                         px.update(mm, phi * vp.beta.as_dvec3(), alpha);
                     }
                 });
@@ -421,12 +448,35 @@ fn direct_light(
     f * ls.li * (ls.wi.dot(it.sp.ns()).abs() / ls.pdf)
 }
 
-/// Photons bucketed by a spatial hash of their grid cell, filled in photon order.
+/// A kept photon, as the gather reads it (48 bytes, stored sorted by grid cell).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GridPhoton {
+    /// Position.
+    pub pos: Vec3,
+    /// Incoming direction (towards the photon's origin).
+    pub dir: Vec3,
+    /// Surface normal on the arrival side.
+    pub normal: Vec3,
+    /// Power (not yet divided by the number of emitted paths).
+    pub power: Color,
+}
+
+impl From<&RawPhoton> for GridPhoton {
+    fn from(p: &RawPhoton) -> Self {
+        GridPhoton { pos: p.pos, dir: p.dir, normal: p.normal, power: p.power }
+    }
+}
+
+/// Photons bucketed by a spatial hash of their grid cell: a counting sort into one
+/// flat array (bucket b holds `photons[start[b]..start[b + 1]]`), stable, so each
+/// bucket keeps photon order. Its buffers are reused when it is rebuilt.
+#[derive(Default)]
 pub struct PhotonGrid {
     inv_cell: f32,
     mask: usize,
     start: Vec<u32>,
-    items: Vec<u32>,
+    keys: Vec<u32>,
+    photons: Vec<GridPhoton>,
 }
 
 #[inline]
@@ -436,31 +486,41 @@ fn cell_hash(c: IVec3, mask: usize) -> usize {
 }
 
 impl PhotonGrid {
-    /// Builds the grid with cubic cells of edge `cell`.
-    pub fn build(photons: &[RawPhoton], cell: f32) -> Self {
-        let inv_cell = 1.0 / cell.max(1e-30);
+    /// Rebuilds the grid over `photons` with cubic cells of edge `cell`.
+    pub fn build(&mut self, photons: &[GridPhoton], cell: f32) {
+        self.inv_cell = 1.0 / cell.max(1e-30);
         let buckets = photons.len().next_power_of_two().max(64);
-        let mask = buckets - 1;
-        let keys: Vec<u32> = photons.par_iter().map(|p| cell_hash((p.pos * inv_cell).floor().as_ivec3(), mask) as u32).collect();
-        let mut start = vec![0u32; buckets + 1];
-        for &k in &keys {
-            start[k as usize + 1] += 1;
+        self.mask = buckets - 1;
+        let (inv_cell, mask) = (self.inv_cell, self.mask);
+        photons.par_iter().map(|p| cell_hash((p.pos * inv_cell).floor().as_ivec3(), mask) as u32).collect_into_vec(&mut self.keys);
+        self.start.clear();
+        self.start.resize(buckets + 1, 0);
+        for &k in &self.keys {
+            self.start[k as usize + 1] += 1;
         }
         for i in 0..buckets {
-            start[i + 1] += start[i];
+            self.start[i + 1] += self.start[i];
         }
-        let mut fill = start.clone();
-        let mut items = vec![0u32; photons.len()];
-        for (i, &k) in keys.iter().enumerate() {
-            items[fill[k as usize] as usize] = i as u32;
-            fill[k as usize] += 1;
+        self.photons.clear();
+        self.photons.resize(photons.len(), GridPhoton::default());
+        // Scatter, using start[k] as the fill cursor of bucket k, then shift back.
+        for (p, &k) in photons.iter().zip(&self.keys) {
+            let slot = &mut self.start[k as usize];
+            self.photons[*slot as usize] = *p;
+            *slot += 1;
         }
-        PhotonGrid { inv_cell, mask, start, items }
+        for i in (1..=buckets).rev() {
+            self.start[i] = self.start[i - 1];
+        }
+        self.start[0] = 0;
     }
 
-    /// Calls `f` with the index of every photon in the cells the sphere (p, r) touches
-    /// (a superset of the photons within r; each at most once).
-    pub fn for_each_candidate(&self, p: Vec3, r: f32, mut f: impl FnMut(u32)) {
+    /// Calls `f` with every photon in the cells the sphere (p, r) touches (a superset
+    /// of the photons within r; each at most once), bucket by bucket in photon order.
+    pub fn for_each_candidate(&self, p: Vec3, r: f32, mut f: impl FnMut(&GridPhoton)) {
+        if self.photons.is_empty() {
+            return;
+        }
         let lo = ((p - Vec3::splat(r)) * self.inv_cell).floor().as_ivec3();
         let hi = ((p + Vec3::splat(r)) * self.inv_cell).floor().as_ivec3();
         let mut seen = [usize::MAX; 27];
@@ -474,9 +534,7 @@ impl PhotonGrid {
                     }
                     seen[n] = b;
                     n += 1;
-                    for &i in &self.items[self.start[b] as usize..self.start[b + 1] as usize] {
-                        f(i);
-                    }
+                    self.photons[self.start[b] as usize..self.start[b + 1] as usize].iter().for_each(&mut f);
                 }
             }
         }
@@ -484,20 +542,33 @@ impl PhotonGrid {
 }
 
 /// Photons within `r` of the visible point that arrived on its side: their count and
-/// Σ Φ f(wo, wi) (before the visible point's throughput).
-pub fn gather(world: &World, grid: &PhotonGrid, photons: &[RawPhoton], vp: &VisiblePoint, r: f32) -> (u64, DVec3) {
+/// Σ Φ f(wo, wi) (before the visible point's throughput). The diffuse part of f is
+/// the same for every photon in the shading hemisphere of wo, so it multiplies the
+/// summed power once; only a glossy lobe is evaluated per photon.
+pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u64, DVec3) {
     let bsdf = &world.scene.material(vp.tri).bsdf;
+    let glossy = bsdf.has_glossy();
+    // f ≠ 0 needs wo and wi strictly on one side of the shading normal (and of the
+    // geometric one, which `vp.n` already faces).
+    let cos_o = vp.wo.dot(vp.sp.ns());
+    let ns = if cos_o >= 0.0 { vp.sp.ns() } else { -vp.sp.ns() };
+    let lit = cos_o != 0.0 && vp.wo.dot(vp.sp.ng) != 0.0;
     let r2 = r * r;
-    let (mut m, mut phi) = (0u64, DVec3::ZERO);
-    grid.for_each_candidate(vp.p, r, |i| {
-        let ph = &photons[i as usize];
+    let (mut m, mut diffuse, mut lobe) = (0u64, DVec3::ZERO, DVec3::ZERO);
+    grid.for_each_candidate(vp.p, r, |ph| {
         if (ph.pos - vp.p).length_squared() > r2 || ph.normal.dot(vp.n) < NORMAL_COS || ph.dir.dot(vp.n) <= 0.0 {
             return;
         }
         m += 1;
-        phi += (bsdf.eval(&vp.sp, vp.wo, ph.dir) * ph.power).as_dvec3();
+        if lit && ph.dir.dot(ns) > 0.0 {
+            diffuse += ph.power.as_dvec3();
+            if glossy {
+                lobe += (bsdf.eval_glossy(&vp.sp, vp.wo, ph.dir) * ph.power).as_dvec3();
+            }
+        }
     });
-    (m, phi)
+    let kd = (bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI).as_dvec3();
+    (m, diffuse * kd + lobe)
 }
 
 impl Integrator for SppmIntegrator {
