@@ -17,13 +17,10 @@
 use super::Integrator;
 use super::photon::{Output, PhotonIntegrator, PhotonSetup};
 use super::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, next_radius2, save_checkpoint};
-use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
-use crate::geometry::Ray;
 use crate::integrator::render::{RenderStats, render};
-use crate::math::{Color, hash_words};
-use crate::sampler::Sampler;
+use crate::math::hash_words;
 use crate::world::World;
 use anyhow::Result;
 use glam::DVec3;
@@ -147,29 +144,7 @@ impl PpmIntegrator {
     }
 }
 
-impl Integrator for PpmIntegrator {
-    fn name(&self) -> &'static str {
-        "ppm"
-    }
-
-    /// Not used: the pipeline renders progressive integrators through
-    /// [`Integrator::render_progressive`].
-    fn li(&self, _world: &World, _ray: &Ray, _sampler: &mut dyn Sampler, _stats: &mut TraversalStats) -> Color {
-        Color::ZERO
-    }
-
-    fn is_progressive(&self) -> bool {
-        true
-    }
-
-    fn render_progressive(&mut self, world: &World, on_pass: OnPass) -> Option<Result<(Film, RenderStats)>> {
-        Some(self.run(world, on_pass))
-    }
-
-    fn stats(&self) -> BTreeMap<String, f64> {
-        self.counters.clone()
-    }
-}
+super::progressive::progressive_integrator!(PpmIntegrator, "ppm");
 
 #[cfg(test)]
 mod tests {

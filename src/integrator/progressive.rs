@@ -176,6 +176,44 @@ pub fn next_radius2(r2: f64, i: u32, alpha: f64) -> f64 {
     r2 * (i as f64 + alpha) / (i as f64 + 1.0)
 }
 
+/// `impl Integrator` for a progressive integrator with a `run(&mut self, world,
+/// on_pass)` method and a `counters` map: it renders itself pass by pass, so the
+/// per-ray `li` of the render pass is never called.
+macro_rules! progressive_integrator {
+    ($ty:ty, $name:literal) => {
+        impl $crate::integrator::Integrator for $ty {
+            fn name(&self) -> &'static str {
+                $name
+            }
+            /// Not used: the pipeline renders progressive integrators through
+            /// [`Integrator::render_progressive`](crate::integrator::Integrator::render_progressive).
+            fn li(
+                &self,
+                _world: &$crate::world::World,
+                _ray: &$crate::geometry::Ray,
+                _sampler: &mut dyn $crate::sampler::Sampler,
+                _stats: &mut $crate::accel::TraversalStats,
+            ) -> $crate::math::Color {
+                $crate::math::Color::ZERO
+            }
+            fn is_progressive(&self) -> bool {
+                true
+            }
+            fn render_progressive(
+                &mut self,
+                world: &$crate::world::World,
+                on_pass: $crate::integrator::progressive::OnPass,
+            ) -> Option<::anyhow::Result<($crate::film::Film, $crate::integrator::render::RenderStats)>> {
+                Some(self.run(world, on_pass))
+            }
+            fn stats(&self) -> ::std::collections::BTreeMap<String, f64> {
+                self.counters.clone()
+            }
+        }
+    };
+}
+pub(crate) use progressive_integrator;
+
 #[cfg(test)]
 mod tests {
     use super::*;

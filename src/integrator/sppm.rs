@@ -27,13 +27,11 @@
 //! in the same order for any thread count (pbrt-v4 splats photons into the visible
 //! points with atomic adds instead, whose order depends on the schedule).
 
-use super::Integrator;
 use super::photon::DirectParams;
 use super::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, save_checkpoint};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
-use crate::geometry::Ray;
 use crate::integrator::render::RenderStats;
 use crate::material::{ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
@@ -571,29 +569,7 @@ pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u
     (m, diffuse * kd + lobe)
 }
 
-impl Integrator for SppmIntegrator {
-    fn name(&self) -> &'static str {
-        "sppm"
-    }
-
-    /// Not used: the pipeline renders progressive integrators through
-    /// [`Integrator::render_progressive`].
-    fn li(&self, _world: &World, _ray: &Ray, _sampler: &mut dyn Sampler, _stats: &mut TraversalStats) -> Color {
-        Color::ZERO
-    }
-
-    fn is_progressive(&self) -> bool {
-        true
-    }
-
-    fn render_progressive(&mut self, world: &World, on_pass: OnPass) -> Option<Result<(Film, RenderStats)>> {
-        Some(self.run(world, on_pass))
-    }
-
-    fn stats(&self) -> BTreeMap<String, f64> {
-        self.counters.clone()
-    }
-}
+super::progressive::progressive_integrator!(SppmIntegrator, "sppm");
 
 #[cfg(test)]
 #[path = "sppm_tests.rs"]

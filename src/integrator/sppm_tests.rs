@@ -1,5 +1,6 @@
 use super::*;
 use crate::camera::Camera;
+use crate::integrator::Integrator;
 use crate::material::Material;
 use crate::param::Reader;
 use crate::registry::{make_accel, make_rr};
