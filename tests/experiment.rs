@@ -38,16 +38,7 @@ repeats = 2
 "#;
 
 fn run_into(manifest: &Path, out: &Path, shard: Option<&str>, force: bool) -> RunReport {
-    run(&RunArgs {
-        manifest: manifest.to_path_buf(),
-        out: Some(out.to_path_buf()),
-        force,
-        shard: shard.map(|s| s.parse::<Shard>().unwrap()),
-        reference_only: false,
-        list: false,
-        quiet: true,
-    })
-    .unwrap()
+    run(&RunArgs { force, shard: shard.map(|s| s.parse::<Shard>().unwrap()), ..RunArgs::quiet(manifest, out) }).unwrap()
 }
 
 /// cells.csv as (header, rows keyed by cell).
@@ -294,16 +285,7 @@ fn shipped_manifests_validate_and_missing_models_are_clear_errors() {
     for f in ["cornell-empty.toml", "cornell-empty.obj", "cornell-empty.mtl"] {
         std::fs::copy(root.join("external/cornell-empty").join(f), d.join("cornell-empty").join(f)).unwrap();
     }
-    let e = run(&RunArgs {
-        manifest: p.clone(),
-        out: Some(d.join("dragon")),
-        force: false,
-        shard: None,
-        reference_only: false,
-        list: false,
-        quiet: true,
-    })
-    .unwrap_err();
+    let e = run(&RunArgs::quiet(p.clone(), d.join("dragon"))).unwrap_err();
     let e = format!("{e:#}");
     assert!(e.starts_with(&p.display().to_string()) && e.contains("not found") && e.contains("download"), "{e}");
     assert!(!d.join("dragon").exists());
@@ -316,16 +298,7 @@ fn sigkill_mid_run_then_resume_gives_the_uninterrupted_results() {
     let text = TINY.replace("[12, 12]", "[40, 40]").replace("spp = [1, 2]", "spp = [8, 16]");
     let p = write(&d, "k.toml", &text);
     // The reference first, alone (as a cluster would before starting the shards).
-    let r = run(&RunArgs {
-        manifest: p.clone(),
-        out: Some(d.join("killed")),
-        force: false,
-        shard: None,
-        reference_only: true,
-        list: false,
-        quiet: true,
-    })
-    .unwrap();
+    let r = run(&RunArgs { reference_only: true, ..RunArgs::quiet(p.clone(), d.join("killed")) }).unwrap();
     assert!(r.reference_rendered && r.ran == 0 && !d.join("killed/cells.csv").exists());
     // A real process killed with SIGKILL as soon as its first cell is recorded.
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_photonlab"))

@@ -56,16 +56,7 @@ gather = "direct"
     let m = d.join("c.toml");
     std::fs::write(&m, text).unwrap();
     let out = d.join("c");
-    run(&RunArgs {
-        manifest: m.clone(),
-        out: Some(out.clone()),
-        force: false,
-        shard: None,
-        reference_only: false,
-        list: false,
-        quiet: true,
-    })
-    .unwrap();
+    run(&RunArgs::quiet(m.clone(), out.clone())).unwrap();
     let read = |p: &str| photonlab::film::Film::read_exr(&out.join(p)).unwrap().mean().element_sum();
     let (full, r, c) = (read("reference-cornell.exr"), read("reference-cornell.indirect.exr"), read("cells/base_r0.indirect.exr"));
     // Indirect light only: darker than the lit box, but not black, in cell and reference.

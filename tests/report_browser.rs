@@ -89,7 +89,7 @@ fn report_loads_and_switches_cells_in_chromium() {
     let manifest = root.join("browser.toml");
     std::fs::write(&manifest, MANIFEST).unwrap();
     let out = root.join("browser");
-    run(&RunArgs { manifest, out: Some(out.clone()), force: false, shard: None, reference_only: false, list: false, quiet: true }).unwrap();
+    run(&RunArgs::quiet(manifest, out.clone())).unwrap();
     let index = out.join("index.html");
     assert!(index.is_file());
     let url = format!("file://{}", index.canonicalize().unwrap().display());

@@ -74,16 +74,7 @@ fn one_and_two_threads_write_identical_bytes() {
         let m = d.join("repro.toml");
         std::fs::write(&m, manifest(threads)).unwrap();
         let out = d.join("repro");
-        let r = run(&RunArgs {
-            manifest: m,
-            out: Some(out.clone()),
-            force: false,
-            shard: None,
-            reference_only: false,
-            list: false,
-            quiet: true,
-        })
-        .unwrap();
+        let r = run(&RunArgs::quiet(m, out.clone())).unwrap();
         assert!(r.reference_rendered && r.finalized);
         outs.push(out);
     }

@@ -60,6 +60,21 @@ pub struct RunArgs {
     pub quiet: bool,
 }
 
+impl RunArgs {
+    /// A plain run of `manifest` into `out`, without progress bars (tests, tools).
+    pub fn quiet(manifest: impl Into<PathBuf>, out: impl Into<PathBuf>) -> Self {
+        RunArgs {
+            manifest: manifest.into(),
+            out: Some(out.into()),
+            force: false,
+            shard: None,
+            reference_only: false,
+            list: false,
+            quiet: true,
+        }
+    }
+}
+
 /// Flags of `merge`.
 #[derive(Args, Debug, Clone)]
 pub struct MergeArgs {
