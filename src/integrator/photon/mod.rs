@@ -325,7 +325,7 @@ impl Integrator for PhotonIntegrator {
             direct_samples: direct.direct_samples,
         };
         let t2 = Instant::now();
-        self.gather.prepare(&ctx, world, self.quiet)?;
+        self.gather.prepare(&ctx, world, cfg.seed, self.quiet)?;
         self.times.insert("prefill_s".into(), t2.elapsed().as_secs_f64());
         self.ctx = Some(ctx);
         Ok(())

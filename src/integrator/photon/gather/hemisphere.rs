@@ -30,6 +30,8 @@ pub struct HemisphereResult {
     pub harmonic_distance: f32,
     /// Smallest hit distance over rays at least 10° above the tangent plane.
     pub min_distance: f32,
+    /// Rays cast (first pass and refinement).
+    pub rays: u32,
 }
 
 /// Strata (M in θ, N in φ) for about `n` rays: N ≈ πM as Ward recommends.
@@ -39,8 +41,81 @@ pub fn strata(n: u32) -> (u32, u32) {
     (m, k)
 }
 
-/// Gathers at `it` with about `n` stratified rays and computes the gradients.
-pub fn gather(ctx: &PhotonContext, at: &GatherPoint, n: u32, stats: &mut TraversalStats) -> HemisphereResult {
+/// Adaptive refinement of a gather ([`allocate`]): extra rays in the strata whose
+/// neighbourhood varies, so that the estimated standard error of the irradiance is
+/// about `rel_error` times the irradiance, with at most `max_rays` / strata rays per
+/// stratum.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refine {
+    /// Target relative standard error (≤ 0 or ≥ 1: no refinement).
+    pub rel_error: f32,
+    /// Cap on the rays of one gather if every stratum took its largest share.
+    pub max_rays: u32,
+}
+
+impl Refine {
+    /// No refinement: one ray per stratum.
+    pub const OFF: Refine = Refine { rel_error: 0.0, max_rays: 0 };
+}
+
+/// Samples per stratum of an M × N gather (`m` rows in θ, `nk` columns in φ) from its
+/// first pass `y` (one value per stratum, row-major).
+///
+/// The variance of a sample in stratum s is estimated by the sample variance of the
+/// first-pass values of its four neighbours (θ ± 1, φ ± 1 with φ wrapping); the mean
+/// radiance by the mean of the other strata. With E = π/count Σ_s mean_s, stratum s
+/// contributes (π/count)² σ_s² / n_s to Var E, so n_s = ⌈σ_s² / (ε² ȳ² count)⌉ makes
+/// Var E ≤ ε² E² (as long as no stratum reaches the cap).
+///
+/// Stratum s's count never depends on its own samples, only on other strata's first
+/// pass, so every stratum's mean, and the irradiance, stays unbiased. (Refining where a
+/// stratum's own samples look noisy does not: a first sample that missed a small
+/// bright source is kept alone while one that hit it is diluted by more samples,
+/// which reads low — −0.5 % over the image and −5 % blocks under a bright ceiling
+/// patch when that was tried.)
+pub fn allocate(y: &[f32], m: usize, nk: usize, refine: Refine) -> Vec<u32> {
+    let count = m * nk;
+    debug_assert_eq!(y.len(), count);
+    let cap = (refine.max_rays as usize / count.max(1)).max(1) as u32;
+    if !(refine.rel_error > 0.0 && refine.rel_error < 1.0) || cap == 1 || count < 2 {
+        return vec![1; count];
+    }
+    let total: f64 = y.iter().map(|&v| v as f64).sum();
+    let eps2 = (refine.rel_error as f64).powi(2);
+    (0..count)
+        .map(|s| {
+            let (j, k) = (s / nk, s % nk);
+            let mut nb = [0f64; 4];
+            let mut c = 0;
+            let mut push = |v: f32| {
+                nb[c] = v as f64;
+                c += 1;
+            };
+            push(y[j * nk + (k + 1) % nk]);
+            if nk > 2 {
+                push(y[j * nk + (k + nk - 1) % nk]);
+            }
+            if j > 0 {
+                push(y[(j - 1) * nk + k]);
+            }
+            if j + 1 < m {
+                push(y[(j + 1) * nk + k]);
+            }
+            let mean_nb = nb[..c].iter().sum::<f64>() / c as f64;
+            let var = if c > 1 { nb[..c].iter().map(|v| (v - mean_nb).powi(2)).sum::<f64>() / (c - 1) as f64 } else { 0.0 };
+            let others = (total - y[s] as f64) / (count - 1) as f64;
+            if others <= 0.0 || var <= 0.0 {
+                return 1;
+            }
+            let want = var / (eps2 * others * others * count as f64);
+            (want.ceil().min(cap as f64) as u32).max(1)
+        })
+        .collect()
+}
+
+/// Gathers at `it` with about `n` stratified rays (more where `refine` asks) and
+/// computes the gradients.
+pub fn gather(ctx: &PhotonContext, at: &GatherPoint, n: u32, refine: Refine, stats: &mut TraversalStats) -> HemisphereResult {
     let GatherPoint { world, it, wo, key, .. } = *at;
     let (m, nk) = strata(n);
     let nrm = facing_shading_normal(it, wo);
@@ -50,18 +125,25 @@ pub fn gather(ctx: &PhotonContext, at: &GatherPoint, n: u32, stats: &mut Travers
     let mut l = vec![Color::ZERO; count];
     let mut d = vec![f32::INFINITY; count];
     let (mut inv_d, mut min_d) = (0.0f32, f32::INFINITY);
-    for j in 0..m {
-        for k in 0..nk {
-            let idx = (j * nk + k) as usize;
-            let (u0, u1) = (key.uniform(2 * idx as u64), key.uniform(2 * idx as u64 + 1));
-            let sin2 = (j as f32 + u0) / m as f32;
-            let (sin_t, cos_t) = (sin2.sqrt(), (1.0 - sin2).max(0.0).sqrt());
-            let phi = 2.0 * PI * (k as f32 + u1) / nk as f32;
-            let wi = frame.to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
-            if wi.dot(it.sp.ng) * side <= 0.0 {
-                continue;
-            }
-            let (li, dist) = ctx.gather_ray(world, world.spawn(it, wi), 0, key.child(idx as u64 + 1), stats);
+    // Sample `s` (0 = the first pass) of stratum `idx`; `None` below the surface.
+    let sample = |idx: usize, s: u32, stats: &mut TraversalStats| -> Option<(Color, f32, f32)> {
+        let (j, k) = ((idx / nk as usize) as f32, (idx % nk as usize) as f32);
+        let sk = if s == 0 { key } else { key.child(0xADA0_0000_0000 | s as u64) };
+        let (u0, u1) = (sk.uniform(2 * idx as u64), sk.uniform(2 * idx as u64 + 1));
+        let sin2 = (j + u0) / m as f32;
+        let (sin_t, cos_t) = (sin2.sqrt(), (1.0 - sin2).max(0.0).sqrt());
+        let phi = 2.0 * PI * (k + u1) / nk as f32;
+        let wi = frame.to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
+        if wi.dot(it.sp.ng) * side <= 0.0 {
+            return None;
+        }
+        let rk = if s == 0 { key.child(idx as u64 + 1) } else { sk.child(idx as u64 + 1) };
+        let (li, dist) = ctx.gather_ray(world, world.spawn(it, wi), 0, rk, stats);
+        Some((li, dist, cos_t))
+    };
+    for idx in 0..count {
+        // Below the geometric surface: no light (a sample of zero).
+        if let Some((li, dist, cos_t)) = sample(idx, 0, stats) {
             l[idx] = li;
             d[idx] = dist;
             if dist.is_finite() {
@@ -70,6 +152,21 @@ pub fn gather(ctx: &PhotonContext, at: &GatherPoint, n: u32, stats: &mut Travers
                     min_d = min_d.min(dist);
                 }
             }
+        }
+    }
+    let first: Vec<f32> = l.iter().map(|&c| crate::math::mean(c)).collect();
+    let per = allocate(&first, m as usize, nk as usize, refine);
+    let mut rays = 0u32;
+    for (idx, &ns) in per.iter().enumerate() {
+        rays += ns;
+        if ns > 1 {
+            let mut sum = l[idx];
+            for s in 1..ns {
+                if let Some((li, _, _)) = sample(idx, s, stats) {
+                    sum += li;
+                }
+            }
+            l[idx] = sum / ns as f32;
         }
     }
     let dir = |phi: f32| frame.to_world(Vec3::new(phi.cos(), phi.sin(), 0.0));
@@ -123,12 +220,74 @@ pub fn gather(ctx: &PhotonContext, at: &GatherPoint, n: u32, stats: &mut Travers
         trans_grad: trans,
         harmonic_distance: if inv_d > 0.0 { count as f32 / inv_d } else { f32::INFINITY },
         min_distance: min_d,
+        rays,
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A stratified estimate of ∫ f over the unit square (the strata of the gather in
+    /// (sin²θ, φ/2π)) with the counts `alloc` gives from the first pass; f is a
+    /// small bright disc on a dim background, like a lamp-lit ceiling patch.
+    /// Samples per stratum from the first pass (`allocate` or a planted rule).
+    type Alloc<'a> = &'a dyn Fn(&[f32], usize, usize) -> Vec<u32>;
+
+    fn estimate(alloc: Alloc, trial: u64) -> (f64, u32) {
+        let f = |u: f32, v: f32| if (u - 0.43).powi(2) + (v - 0.61).powi(2) < 0.06f32.powi(2) { 20.0 } else { 0.2 };
+        let (m, nk) = strata(256);
+        let count = (m * nk) as usize;
+        let key = crate::integrator::photon::context::ShadeKey(trial);
+        let at = |idx: usize, s: u64| {
+            let k = key.child(s);
+            let (j, c) = ((idx / nk as usize) as f32, (idx % nk as usize) as f32);
+            f((j + k.uniform(2 * idx as u64)) / m as f32, (c + k.uniform(2 * idx as u64 + 1)) / nk as f32)
+        };
+        let first: Vec<f32> = (0..count).map(|i| at(i, 0)).collect();
+        let per = alloc(&first, m as usize, nk as usize);
+        let mut e = 0.0f64;
+        for (i, &n) in per.iter().enumerate() {
+            let sum: f32 = first[i] + (1..n).map(|s| at(i, s as u64)).sum::<f32>();
+            e += (sum / n as f32) as f64;
+        }
+        (e / count as f64, per.iter().sum())
+    }
+
+    /// Refinement lowers the noise and keeps the estimate unbiased: the mean of 4000
+    /// independent estimates is within 4 standard errors of the exact integral (measured:
+    /// relative standard deviation 0.237 → 0.151 for 317 instead of 252 rays; the cap
+    /// of 8 rays per stratum binds on this 100:1 disc). The planted control refines by
+    /// the stratum's own first sample (|y − neighbour|), which reads low (0.386 against
+    /// 0.424 in a numpy simulation): a first sample on the disc is diluted, one that
+    /// missed it is kept.
+    #[test]
+    fn refinement_is_unbiased() {
+        let exact = 0.2 + (20.0 - 0.2) * std::f64::consts::PI * 0.06 * 0.06;
+        let refine = Refine { rel_error: 0.02, max_rays: 2048 };
+        let run = |alloc: Alloc| {
+            let n = 4000;
+            let v: Vec<(f64, u32)> = (0..n).map(|t| estimate(alloc, t)).collect();
+            let mean = v.iter().map(|x| x.0).sum::<f64>() / n as f64;
+            let var = v.iter().map(|x| (x.0 - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+            let rays = v.iter().map(|x| x.1 as f64).sum::<f64>() / n as f64;
+            (mean, (var / n as f64).sqrt(), var.sqrt() / exact, rays)
+        };
+        let (mean1, se1, rel1, rays1) = run(&|_, m, nk| vec![1; m * nk]);
+        let (mean, se, rel, rays) = run(&|y, m, nk| allocate(y, m, nk, refine));
+        eprintln!(
+            "exact {exact:.5}; one ray per stratum {mean1:.5} ± {se1:.5} (rel sd {rel1:.4}); refined {mean:.5} ± {se:.5} (rel sd {rel:.4}, {rays:.0} rays)"
+        );
+        assert!((mean1 - exact).abs() < 4.0 * se1);
+        assert!((mean - exact).abs() < 4.0 * se, "refined estimate biased: {mean} vs {exact} (se {se})");
+        assert!(rel < 0.8 * rel1 && rays < 2.0 * rays1, "refinement did not lower the noise: {rel} vs {rel1}");
+        // Control: the count from the stratum's own sample (its difference to a neighbour).
+        let own = |y: &[f32], m: usize, nk: usize| -> Vec<u32> {
+            (0..m * nk).map(|s| if (y[s] - y[(s / nk) * nk + (s % nk + 1) % nk]).abs() > 1.0 { 8 } else { 1 }).collect()
+        };
+        let (mean_c, se_c, _, _) = run(&own);
+        assert!(mean_c < exact - 4.0 * se_c, "the control should read low: {mean_c} vs {exact} (se {se_c})");
+    }
 
     #[test]
     fn strata_follow_ward() {

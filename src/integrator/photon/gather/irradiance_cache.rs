@@ -2,7 +2,10 @@
 //! final gather, optionally on top of precomputed irradiance.
 //!
 //! An entry stores the indirect irradiance from a stratified final gather
-//! ([`super::hemisphere`]), its rotational and translational gradients (Ward &
+//! ([`super::hemisphere`]; `ic_samples` rays, one per stratum, then more in the strata
+//! whose neighbours vary until the estimated standard error is about `ic_error` of
+//! the irradiance — an entry's noise is frozen into every pixel it covers, so noise
+//! that a per-pixel gather would average away shows as blotches), its rotational and translational gradients (Ward &
 //! Heckbert 1992), the facing shading normal and a valid radius R: the harmonic mean
 //! of the gather-ray hit distances (report eq. 11), limited by E/|∇E| (Křivánek et
 //! al. 2006), clamped by its neighbours (R_i ≤ R_j + |p_i − p_j|, the same paper) and
@@ -19,7 +22,7 @@
 //!
 //! Reproducibility: the cache is filled before rendering by a deterministic prefill
 //! (rounds over the pixels at strides 16, 8, 4, 2, 1, one jittered position per
-//! pixel — pixel centres would put whole rows of entries exactly on the edges of
+//! pixel, positions and gather rays a function of the render's seed and the pixel — pixel centres would put whole rows of entries exactly on the edges of
 //! symmetric scenes, where gather rays start inside the neighbouring wall and leak
 //! light through it; within a round every miss is computed in parallel against the
 //! cache of the previous rounds, the new entries are inserted in pixel order and
@@ -126,6 +129,10 @@ crate::params! {
         ic_gradients: bool = "true",
         /// Rays per entry (stratified M × N with N ≈ πM); entries are reused over many pixels, so their noise becomes blotches: more rays than a per-pixel gather.
         ic_samples: u32 = "256",
+        /// Adaptive entries: after one ray per stratum, strata whose neighbours differ get more rays, as many as bring the estimated standard error of the entry's irradiance to this fraction of it (an entry's noise is frozen into every pixel it covers); 0 = exactly `ic_samples` rays.
+        ic_error: f32 = "0.03",
+        /// Cap on the rays of one adaptive entry: at most ic_max_samples / ic_samples rays per stratum.
+        ic_max_samples: u32 = "2048",
         /// Neighbour clamping of radii (Křivánek et al. 2006): R_i ≤ R_j + |p_i − p_j|.
         ic_neighbor_clamp: bool = "true",
         /// Gather over Christensen's precomputed irradiance (`precompute_stride`) instead of full photon estimates at gather hits.
@@ -151,6 +158,9 @@ impl CacheSettings {
         if self.ic_samples == 0 {
             anyhow::bail!("ic_samples must be at least 1");
         }
+        if self.ic_error.is_nan() || self.ic_error < 0.0 || self.ic_error >= 1.0 {
+            anyhow::bail!("ic_error must be in [0, 1), got {}", self.ic_error);
+        }
         Ok(())
     }
 }
@@ -163,6 +173,7 @@ pub struct IrradianceCache {
     largest: f32,
     hits: AtomicU64,
     misses: AtomicU64,
+    entry_rays: AtomicU64,
     /// Number of prefill rounds run.
     pub rounds: u32,
 }
@@ -170,7 +181,15 @@ pub struct IrradianceCache {
 impl IrradianceCache {
     /// Empty cache.
     pub fn new(settings: CacheSettings) -> Self {
-        IrradianceCache { settings, tree: KdTree::default(), largest: 0.0, hits: AtomicU64::new(0), misses: AtomicU64::new(0), rounds: 0 }
+        IrradianceCache {
+            settings,
+            tree: KdTree::default(),
+            largest: 0.0,
+            hits: AtomicU64::new(0),
+            misses: AtomicU64::new(0),
+            entry_rays: AtomicU64::new(0),
+            rounds: 0,
+        }
     }
 
     /// Entries.
@@ -256,7 +275,9 @@ impl IrradianceCache {
     fn entry_at(&self, ctx: &PhotonContext, at: &GatherPoint, footprint: f32, stats: &mut TraversalStats) -> CacheEntry {
         let st = &self.settings;
         let (world, it, wo) = (at.world, at.it, at.wo);
-        let g = hemisphere::gather(ctx, at, st.ic_samples, stats);
+        let refine = hemisphere::Refine { rel_error: st.ic_error, max_rays: st.ic_max_samples };
+        let g = hemisphere::gather(ctx, at, st.ic_samples, refine, stats);
+        self.entry_rays.fetch_add(g.rays as u64, Ordering::Relaxed);
         let scene_r = world.lights.scene_radius;
         let lo = (st.ic_min_radius * scene_r).max(st.ic_min_pixels * footprint);
         let hi = (st.ic_max_radius * scene_r).min(st.ic_max_pixels * footprint).max(lo);
@@ -291,7 +312,7 @@ impl IrradianceCache {
     }
 
     /// Deterministic prefill over jittered pixel positions (see the module docs).
-    pub fn prefill(&mut self, ctx: &PhotonContext, world: &World, quiet: bool) {
+    pub fn prefill(&mut self, ctx: &PhotonContext, world: &World, seed: u64, quiet: bool) {
         let cam = &world.scene.camera;
         let (w, h) = (cam.width, cam.height);
         // Angle subtended by one pixel at the image centre.
@@ -306,8 +327,8 @@ impl IrradianceCache {
                 .filter_map(|&(x, y)| {
                     let mut stats = TraversalStats::default();
                     let pixel = y as u64 * w as u64 + x as u64;
-                    let key = ShadeKey(hash_words(&[0xCAC4E, pixel]));
-                    let j = hash_words(&[0x717E5, pixel]);
+                    let key = ShadeKey(hash_words(&[0xCAC4E, seed, pixel]));
+                    let j = hash_words(&[0x717E5, seed, pixel]);
                     let (jx, jy) = (u32_to_unit(j as u32), u32_to_unit((j >> 32) as u32));
                     let ray = cam.generate_ray(x as f32 + jx, y as f32 + jy);
                     let path = ctx.follow_specular_path(world, ray, key, &mut stats)?;
@@ -340,8 +361,8 @@ impl Gather for IrradianceCache {
     fn name(&self) -> &'static str {
         "irradiance_cache"
     }
-    fn prepare(&mut self, ctx: &PhotonContext, world: &World, quiet: bool) -> anyhow::Result<()> {
-        self.prefill(ctx, world, quiet);
+    fn prepare(&mut self, ctx: &PhotonContext, world: &World, seed: u64, quiet: bool) -> anyhow::Result<()> {
+        self.prefill(ctx, world, seed, quiet);
         Ok(())
     }
     fn indirect(&self, ctx: &PhotonContext, at: &GatherPoint, stats: &mut TraversalStats) -> Color {
@@ -365,6 +386,7 @@ impl Gather for IrradianceCache {
             ("cache_entries".into(), self.tree.len() as f64),
             ("cache_hits".into(), self.hits.load(Ordering::Relaxed) as f64),
             ("cache_misses".into(), self.misses.load(Ordering::Relaxed) as f64),
+            ("cache_entry_rays".into(), self.entry_rays.load(Ordering::Relaxed) as f64),
         ]
     }
     fn debug_points(&self) -> Vec<Vec3> {

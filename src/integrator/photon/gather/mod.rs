@@ -101,8 +101,9 @@ impl GatherSpec {
 pub trait Gather: Send + Sync {
     /// Configuration name.
     fn name(&self) -> &'static str;
-    /// Work after the photon pass and before rendering (e.g. cache prefill).
-    fn prepare(&mut self, _ctx: &PhotonContext, _world: &World, _quiet: bool) -> anyhow::Result<()> {
+    /// Work after the photon pass and before rendering (e.g. cache prefill); `seed` is
+    /// the render's seed (renders with different seeds must be independent).
+    fn prepare(&mut self, _ctx: &PhotonContext, _world: &World, _seed: u64, _quiet: bool) -> anyhow::Result<()> {
         Ok(())
     }
     /// Indirect radiance reflected towards `at.wo` at the first diffuse surface `at.it`.
