@@ -130,7 +130,8 @@ fn thin_geometry_is_not_darkened() {
 /// by the frozen noise of both (pixel noise is small there: at a diffuse camera hit
 /// the indirect light is a cache lookup). The default (adaptive entries, `ic_error`)
 /// must cut the 16-px block spread of that difference well below the same renders'
-/// with one ray per stratum (`ic_error = 0`, the state before), and below a bound.
+/// with one ray per stratum (`ic_error = 0`, the state before: 0.036) and below 2.5 %
+/// (measured 0.016). Fails with the refinement removed (checked: 0.036 both).
 /// Budget: 128², 100k photons, 2 spp, four renders.
 #[test]
 fn cache_entries_do_not_freeze_noise() {
@@ -162,5 +163,5 @@ fn cache_entries_do_not_freeze_noise() {
         rms
     };
     let (adaptive, fixed) = (spread(None), spread(Some(0.0)));
-    assert!(adaptive < 0.6 * fixed && adaptive < 1.0, "block spread between seeds {adaptive:.4} (default) vs {fixed:.4} (ic_error 0)");
+    assert!(adaptive < 0.6 * fixed && adaptive < 0.025, "block spread between seeds {adaptive:.4} (default) vs {fixed:.4} (ic_error 0)");
 }
