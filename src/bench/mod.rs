@@ -4,6 +4,7 @@
 pub mod accel;
 pub mod embree;
 pub mod knn;
+pub mod progressive;
 pub mod render;
 pub mod scaling;
 
@@ -23,6 +24,8 @@ pub enum BenchCommand {
     Render(render::RenderArgs),
     /// Per-phase speed-up of a photon render from 1 to 2 threads.
     Scaling(scaling::ScalingArgs),
+    /// Speed of an `sppm` pass: passes/s, photon paths/s per thread, 1 → 2 thread speed-up per phase.
+    Progressive(progressive::ProgressiveArgs),
     /// Every benchmark that finishes within about ten minutes, one after another.
     All {
         /// One JSON object per line instead of tables.
@@ -39,6 +42,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Knn(a) => knn::run(&a),
         BenchCommand::Render(a) => render::run(&a).map(|_| ()),
         BenchCommand::Scaling(a) => scaling::run(&a),
+        BenchCommand::Progressive(a) => progressive::run(&a),
         BenchCommand::All { json } => run_all(json),
     }
 }

@@ -10,7 +10,9 @@
 //!    pbrt-v4's one light sample per pass), stratified by
 //!    `direct_sampler` (`sppm_direct = "trace"`), or left to the photons (`"photons"`).
 //! 2. **Photon pass.** `photons_per_pass` photon paths (2 per pixel unless set;
-//!    indices pass·M … pass·M + M − 1 of one emission sequence), traced by [`crate::photon::trace_path`]. Photon hits on
+//!    indices 0 … M − 1 of a sampler stream of the pass's own, so each pass is an
+//!    independent randomisation of the same point set and the radical inverses stay
+//!    short), traced by [`crate::photon::trace_path_in`]. Photon hits on
 //!    non-delta surfaces after at least one bounce are kept (first hits too with
 //!    `"photons"`), in path order.
 //! 3. **Gather.** The kept photons go into a hash grid rebuilt per pass (cell edge =
@@ -20,7 +22,10 @@
 //!    ~45°, the photon coming from the visible point's hemisphere).
 //! 4. **Update** (per pixel): N' = N + αM, r' = r √(N'/(N + M)), τ' = (τ + βΦ) r'²/r².
 //!
-//! The image after p passes is L = Σ L_direct / p + τ / (p·M·π r²).
+//! The image after p passes is L = Σ L_direct / p + τ / (p·M·π r²·a), where a is the
+//! share of the disc covered by surface, measured by `sppm_area_probes` probe rays per
+//! pass ([`area_probe`]; 1 without probes): near edges and corners part of the disc
+//! holds no surface and no photons, which otherwise darkens them (boundary bias).
 //!
 //! Determinism: the camera pass and the gather run per pixel; photons are merged in
 //! path order and the grid is filled in that order, so each pixel adds its photons
@@ -35,7 +40,7 @@ use crate::film::Film;
 use crate::integrator::render::RenderStats;
 use crate::material::{ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
-use crate::photon::{MapKind, RawPhoton, trace_path};
+use crate::photon::{MapKind, RawPhoton, trace_path_in};
 use crate::rr::{RrContext, RussianRoulette, roulette};
 use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
 use crate::world::World;
@@ -49,8 +54,10 @@ use std::time::Instant;
 /// `cornell` and `cornell-glass` at 128²: 2 beat 1, 4 and 8 per pixel at equal time).
 pub const DEFAULT_PHOTONS_PER_PIXEL: u64 = 2;
 /// Default initial radius as a fraction of the scene's bounding-sphere radius
-/// (measured: 0.03 beat 0.01, 0.02 and 0.06 at equal time on both scenes).
-pub const DEFAULT_RADIUS_FRACTION: f32 = 0.03;
+/// (measured with the area probes and `sppm_density_cap = 1` on `cornell`, McGuire's
+/// CornellBox-Original and `cornell-glass`: 0.06 beat 0.03 on all three; without the
+/// area probes and the cap, 0.03 was best).
+pub const DEFAULT_RADIUS_FRACTION: f32 = 0.06;
 /// Shadow rays per visible point and pass when `direct_samples` is unset (pbrt-v4's
 /// one light sample per pass; more rays per pass did not lower the error per second).
 pub const DEFAULT_DIRECT_SAMPLES: u32 = 1;
@@ -62,10 +69,14 @@ const PHOTON_CHUNK: u64 = 1024;
 crate::params! {
     /// Parameters of the `sppm` integrator.
     pub struct SppmParams {
-        /// Initial per-pixel radius (scene units); `auto` = 0.03 × the scene's bounding radius.
+        /// Initial per-pixel radius (scene units); `auto` = 0.06 × the scene's bounding radius.
         sppm_radius: Option<f32> = "auto",
         /// Direct light by `trace` (shadow rays at the visible point) or `photons`.
         sppm_direct: String = "trace",
+        /// After the first pass, a pixel whose disc caught more than this × the median photon count keeps only that many and its radius shrinks to match (a smaller start where light is dense, e.g. caustics); 0 = off.
+        sppm_density_cap: f32 = "1",
+        /// Probe rays per visible point and pass that measure the share of its disc covered by surface (edges, corners: boundary bias); 0 divides by π r².
+        sppm_area_probes: u32 = "1",
     }
 }
 
@@ -91,6 +102,9 @@ impl SppmSetup {
         }
         if !matches!(p.sppm_direct.as_str(), "trace" | "photons") {
             bail!("unknown sppm_direct `{}` (known: trace, photons)", p.sppm_direct);
+        }
+        if p.sppm_density_cap.is_nan() || p.sppm_density_cap < 0.0 {
+            bail!("sppm_density_cap must be 0 (off) or positive, got {}", p.sppm_density_cap);
         }
         if let Some(r) = p.sppm_radius
             && (r.is_nan() || r <= 0.0 || r.is_infinite())
@@ -137,39 +151,61 @@ pub struct PixelStats {
     pub n: f64,
     /// Current radius.
     pub r: f64,
+    /// Area probes that found surface inside the disc, over all passes.
+    pub area_hits: f64,
+    /// Area probes cast, over all passes.
+    pub area_probes: f64,
 }
 
 impl PixelStats {
     /// Fresh statistics with radius `r`.
     pub fn new(r: f64) -> Self {
-        PixelStats { ld: DVec3::ZERO, tau: DVec3::ZERO, n: 0.0, r }
+        PixelStats { ld: DVec3::ZERO, tau: DVec3::ZERO, n: 0.0, r, area_hits: 0.0, area_probes: 0.0 }
     }
     /// Folds in one pass's gather: `m` photons with summed flux `phi` (β applied).
     pub fn update(&mut self, m: u64, phi: DVec3, alpha: f64) {
+        self.update_capped(m, phi, alpha, f64::INFINITY);
+    }
+    /// [`PixelStats::update`] keeping at most `cap` photons: N' = min(N + αM, cap),
+    /// the radius shrinking to match as in the update (r' = r √(N'/(N + M))).
+    pub fn update_capped(&mut self, m: u64, phi: DVec3, alpha: f64, cap: f64) {
         if m == 0 {
             return;
         }
         let m = m as f64;
-        let n_new = self.n + alpha * m;
+        let n_new = if cap > self.n { (self.n + alpha * m).min(cap) } else { self.n + alpha * m };
         let r_new = self.r * (n_new / (self.n + m)).sqrt();
         self.tau = (self.tau + phi) * (r_new * r_new) / (self.r * self.r);
         self.n = n_new;
         self.r = r_new;
     }
     /// The statistics as bit patterns (checkpoints).
-    pub fn to_bits(&self) -> [u64; 8] {
-        let v = [self.ld.x, self.ld.y, self.ld.z, self.tau.x, self.tau.y, self.tau.z, self.n, self.r];
+    pub fn to_bits(&self) -> [u64; 10] {
+        let v = [self.ld.x, self.ld.y, self.ld.z, self.tau.x, self.tau.y, self.tau.z, self.n, self.r, self.area_hits, self.area_probes];
         v.map(f64::to_bits)
     }
     /// Inverse of [`PixelStats::to_bits`].
-    pub fn from_bits(b: &[u64; 8]) -> Self {
+    pub fn from_bits(b: &[u64; 10]) -> Self {
         let v = b.map(f64::from_bits);
-        PixelStats { ld: DVec3::new(v[0], v[1], v[2]), tau: DVec3::new(v[3], v[4], v[5]), n: v[6], r: v[7] }
+        PixelStats {
+            ld: DVec3::new(v[0], v[1], v[2]),
+            tau: DVec3::new(v[3], v[4], v[5]),
+            n: v[6],
+            r: v[7],
+            area_hits: v[8],
+            area_probes: v[9],
+        }
+    }
+    /// Share of the disc covered by surface, from the area probes: (hits + 1) /
+    /// (probes + 1), so 1 without probes and before the first one; it tends to the
+    /// true share as probes accumulate, and to 1 off edges as the radius shrinks.
+    pub fn area_share(&self) -> f64 {
+        (self.area_hits + 1.0) / (self.area_probes + 1.0)
     }
     /// Radiance estimate after `passes` passes of `photons` emitted paths each.
     pub fn radiance(&self, passes: u32, photons: u64) -> Color {
         let p = passes.max(1) as f64;
-        let flux = self.tau / (p * photons as f64 * std::f64::consts::PI * self.r * self.r);
+        let flux = self.tau / (p * photons as f64 * std::f64::consts::PI * self.r * self.r * self.area_share());
         (self.ld / p + flux).as_vec3()
     }
 }
@@ -288,7 +324,9 @@ impl SppmIntegrator {
         let r0 = self.set.p.sppm_radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius) as f64;
         let counts = (budget.max_passes != u32::MAX).then_some(budget.max_passes as u64);
         let cam_sampler = crate::sampler::make(&self.cfg.sampler, self.cfg.seed, counts)?;
-        let emit_sampler = crate::sampler::make(&self.cfg.sampler, self.cfg.seed, counts.map(|c| c * m))?;
+        // Every pass traces photon indices 0 … M − 1 of a stream of its own.
+        let emit_sampler = crate::sampler::make(&self.cfg.sampler, self.cfg.seed, Some(m))?;
+        let probes = self.set.p.sppm_area_probes;
         let keep_first = self.set.p.sppm_direct == "photons";
         let n_direct = self.set.direct.direct_samples.max(1) as u64;
         let direct_sampler = crate::sampler::make(&self.set.direct.direct_sampler, self.cfg.seed, Some(n_direct))?;
@@ -299,7 +337,7 @@ impl SppmIntegrator {
         let mut photon_rays = TraversalStats::default();
         let mut pass = 0u32;
         let mut film = Film::new(w, h);
-        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 8]>>(&self.cfg, &self.set.prog, world)? {
+        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 10]>>(&self.cfg, &self.set.prog, world)? {
             if saved.len() != npix {
                 bail!("checkpoint holds {} pixels, the image has {npix}", saved.len());
             }
@@ -313,6 +351,7 @@ impl SppmIntegrator {
         let mut vps: Vec<Option<VisiblePoint>> = vec![None; npix];
         let mut flat: Vec<GridPhoton> = Vec::new();
         let mut grid = PhotonGrid::default();
+        let mut found: Vec<Option<(u64, DVec3)>> = Vec::new();
         while budget.more(pass) {
             // 1. Camera pass: rows in parallel, written in place.
             let t0 = Instant::now();
@@ -331,6 +370,15 @@ impl SppmIntegrator {
                                 px.ld += l.as_dvec3();
                             } else {
                                 bad += 1;
+                            }
+                            if let Some(v) = &v {
+                                let key = hash_words(&[self.cfg.seed, y as u64 * w as u64 + x as u64, pass as u64, 0xA2EA]);
+                                for j in 0..probes {
+                                    let h = crate::math::mix64(key ^ j as u64);
+                                    let u = [crate::math::u32_to_unit(h as u32), crate::math::u32_to_unit((h >> 32) as u32)];
+                                    px.area_hits += area_probe(world, v, px.r as f32, u, &mut st) as u32 as f64;
+                                }
+                                px.area_probes += probes as f64;
                             }
                             *vp = v;
                         }
@@ -351,7 +399,7 @@ impl SppmIntegrator {
 
             // 2. Photon pass: chunks in parallel, merged in path order.
             let t1 = Instant::now();
-            let first = pass as u64 * m;
+            let stream = photon_stream(pass);
             let chunks = m.div_ceil(PHOTON_CHUNK);
             let traced: Vec<(Vec<GridPhoton>, TraversalStats)> = (0..chunks)
                 .into_par_iter()
@@ -361,7 +409,7 @@ impl SppmIntegrator {
                         raw.clear();
                         let mut st = TraversalStats::default();
                         for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
-                            trace_path(world, s.as_mut(), first + j, self.rr.as_ref(), self.cfg.depth_limit(), &mut st, raw);
+                            trace_path_in(world, s.as_mut(), stream, j, self.rr.as_ref(), self.cfg.depth_limit(), &mut st, raw);
                         }
                         let out = raw.iter().filter(|p| keep_first || p.kind != MapKind::Direct).map(GridPhoton::from).collect();
                         (out, st)
@@ -382,12 +430,30 @@ impl SppmIntegrator {
             let r_max = vps.iter().zip(&pixels).filter(|(v, _)| v.is_some()).map(|(_, p)| p.r).fold(0.0f64, f64::max);
             if r_max > 0.0 && !flat.is_empty() {
                 grid.build(&flat, (2.0 * r_max) as f32);
-                pixels.par_iter_mut().zip(vps.par_iter()).for_each(|(px, vp)| {
-                    if let Some(vp) = vp {
-                        let (mm, phi) = gather(world, &grid, vp, px.r as f32);
-                        px.update(mm, phi * vp.beta.as_dvec3(), alpha);
-                    }
-                });
+                let cap_factor = self.set.p.sppm_density_cap as f64;
+                if pass == 0 && cap_factor > 0.0 {
+                    // First pass: gather, then cap each pixel's count at cap_factor × the
+                    // median count (dense light such as caustics starts with a smaller disc).
+                    found.clear();
+                    vps.par_iter()
+                        .zip(pixels.par_iter())
+                        .map(|(vp, px)| vp.as_ref().map(|vp| gather(world, &grid, vp, px.r as f32)))
+                        .collect_into_vec(&mut found);
+                    let cap = cap_factor * alpha * median_count(&found);
+                    let cap = if cap > 0.0 { cap } else { f64::INFINITY };
+                    pixels.par_iter_mut().zip(vps.par_iter().zip(found.par_iter())).for_each(|(px, (vp, f))| {
+                        if let (Some(vp), Some((mm, phi))) = (vp, f) {
+                            px.update_capped(*mm, *phi * vp.beta.as_dvec3(), alpha, cap);
+                        }
+                    });
+                } else {
+                    pixels.par_iter_mut().zip(vps.par_iter()).for_each(|(px, vp)| {
+                        if let Some(vp) = vp {
+                            let (mm, phi) = gather(world, &grid, vp, px.r as f32);
+                            px.update(mm, phi * vp.beta.as_dvec3(), alpha);
+                        }
+                    });
+                }
             }
             t_gather += t2.elapsed().as_secs_f64();
             pass += 1;
@@ -444,6 +510,44 @@ fn direct_light(
         return Color::ZERO;
     }
     f * ls.li * (ls.wi.dot(it.sp.ns()).abs() / ls.pdf)
+}
+
+/// Median photon count over the pixels that caught photons (0 if none did).
+fn median_count(found: &[Option<(u64, DVec3)>]) -> f64 {
+    let mut m: Vec<u64> = found.iter().filter_map(|f| f.map(|f| f.0)).filter(|&m| m > 0).collect();
+    if m.is_empty() {
+        return 0.0;
+    }
+    let mid = m.len() / 2;
+    *m.select_nth_unstable(mid).1 as f64
+}
+
+/// Sampler stream of pass `pass`'s photon paths (top bit set: never a pixel's stream).
+pub fn photon_stream(pass: u32) -> u64 {
+    hash_words(&[pass as u64, 0x5991]) | 1 << 63
+}
+
+/// One area probe (Hey & Purgathofer's boundary-bias correction, as the precomputed
+/// irradiance's `area_probes`): a point uniform in the visible point's disc of radius
+/// `r` on its tangent plane, and a ray from `r/4` above it down to `r/4` below. True
+/// when the ray meets a surface facing like the visible point's (normals within
+/// ~45°, as the gather's photon test) inside that slab: surface photons can land on.
+/// Near an edge or corner part of the disc holds no surface, so the photon density
+/// divided by π r² is too low there by that share.
+pub fn area_probe(world: &World, vp: &VisiblePoint, r: f32, u: [f32; 2], stats: &mut TraversalStats) -> bool {
+    let f = crate::math::Frame::new(vp.n);
+    let q = crate::math::concentric_disc(u);
+    let h = 0.25 * r;
+    let o = vp.p + (f.s * q[0] + f.t * q[1]) * r + vp.n * h;
+    let ray = crate::geometry::Ray::new(o, -vp.n);
+    match world.accel.intersect(&ray, 2.0 * h, stats) {
+        Some(hit) => {
+            let t = &world.scene.triangles[hit.tri as usize];
+            let ng = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+            ng.dot(vp.n).abs() >= NORMAL_COS
+        }
+        None => false,
+    }
 }
 
 /// A kept photon, as the gather reads it (48 bytes, stored sorted by grid cell).

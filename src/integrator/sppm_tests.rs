@@ -105,6 +105,69 @@ fn bad_settings_are_named() {
     };
     assert!(err("sppm_direct", "both".into()).contains("sppm_direct"));
     assert!(err("sppm_radius", (-1.0).into()).contains("sppm_radius"));
+    assert!(err("sppm_density_cap", (-1.0).into()).contains("sppm_density_cap"));
     assert!(err("alpha", f64::NAN.into()).contains("alpha"));
     assert!(err("photons_per_pass", 0.into()).contains("photons_per_pass"));
+}
+
+/// A lone square floor (side 2, albedo 0.8) under a point light, seen from above with
+/// room around it: the area probes must remove the darkening of its rim, where part
+/// of each pixel's disc hangs over the edge and holds no photons (boundary bias).
+#[test]
+fn area_probes_remove_the_darkening_at_edges() {
+    let m = MeshData {
+        positions: vec![Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(-1.0, 0.0, 1.0)],
+        faces: vec![Face { v: [0, 2, 1], n: None, material: 0, line: 0 }, Face { v: [0, 3, 2], n: None, material: 0, line: 0 }],
+        materials: vec![Material::diffuse("floor", Color::splat(0.8))],
+        ..Default::default()
+    };
+    let (w, h) = (32u32, 32u32);
+    let cam = Camera::new(Vec3::new(0.0, 3.0, 0.0), Vec3::ZERO, Vec3::Z, 60.0, w, h).unwrap();
+    let mut scene = Scene::new("floor", cam.clone());
+    scene.add_mesh(&m, &Placement::default(), None).unwrap();
+    let light = Vec3::new(0.0, 2.5, 0.0);
+    scene.lights.push(LightDesc::Point { position: light, intensity: Color::splat(30.0) });
+    let accel = make_accel("bvh", &scene.triangles).unwrap();
+    let world = World::new(scene, accel).unwrap();
+    // Exact radiance at the floor point under a pixel position: ρ/π · I cos θ / d².
+    let exact = |x: f32, y: f32| {
+        let ray = cam.generate_ray(x, y);
+        let t = -ray.o.y / ray.d.y;
+        let p = ray.o + ray.d * t;
+        let inside = p.x.abs() < 1.0 && p.z.abs() < 1.0;
+        let d = light - p;
+        (inside, 0.8 / std::f32::consts::PI * 30.0 * d.y / d.length().powi(3), 1.0 - p.x.abs().max(p.z.abs()))
+    };
+    let rim_ratio = |probes: u32| {
+        let cfg = RenderConfig { integrator: "sppm".into(), ..Default::default() }
+            .with("passes", 8)
+            .with("photons_per_pass", 40_000)
+            .with("sppm_direct", "photons")
+            .with("sppm_radius", 0.25)
+            .with("sppm_area_probes", probes as i64);
+        let r = Reader::new(&cfg.params);
+        let mut sppm = SppmIntegrator::new(&cfg, &r, make_rr("throughput").unwrap(), true).unwrap();
+        let (film, _) = sppm.run(&world, &mut |_, _, _| {}).unwrap();
+        let (mut test, mut want) = (0.0f64, 0.0f64);
+        for y in 0..h {
+            for x in 0..w {
+                // Pixels wholly on the floor whose centre lies within 0.12 of its edge.
+                let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
+                if !corners.iter().all(|&(dx, dy)| exact(x as f32 + dx, y as f32 + dy).0) {
+                    continue;
+                }
+                let (_, l, dist) = exact(x as f32 + 0.5, y as f32 + 0.5);
+                if dist < 0.12 {
+                    test += film.get(x, y).x as f64;
+                    want += l as f64;
+                }
+            }
+        }
+        assert!(want > 0.0);
+        test / want
+    };
+    let (with, without) = (rim_ratio(4), rim_ratio(0));
+    assert!((with - 1.0).abs() < 0.06, "rim with area probes: {with} of the exact radiance");
+    // Without them the rim is much darker (the test can fail).
+    assert!(without < 0.85, "rim without area probes: {without}");
 }

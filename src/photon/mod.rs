@@ -173,7 +173,24 @@ pub fn trace_path(
     stats: &mut TraversalStats,
     out: &mut Vec<RawPhoton>,
 ) {
-    sampler.start(PHOTON_STREAM, index);
+    trace_path_in(world, sampler, PHOTON_STREAM, index, rr, max_depth, stats, out);
+}
+
+/// [`trace_path`] with sample `index` of sampler stream `stream` instead of the one
+/// emission sequence [`PHOTON_STREAM`] (`sppm` gives every pass a stream of its own,
+/// so indices stay small: fewer radical-inverse digits, independent passes).
+#[allow(clippy::too_many_arguments)]
+pub fn trace_path_in(
+    world: &World,
+    sampler: &mut dyn Sampler,
+    stream: u64,
+    index: u64,
+    rr: &dyn RussianRoulette,
+    max_depth: u32,
+    stats: &mut TraversalStats,
+    out: &mut Vec<RawPhoton>,
+) {
+    sampler.start(stream, index);
     let u_sel = sampler.next_1d();
     let u_pos = sampler.next_2d();
     let u_dir = sampler.next_2d();
