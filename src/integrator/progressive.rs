@@ -92,7 +92,8 @@ struct Checkpoint<S> {
     state: S,
 }
 
-const CHECKPOINT_FORMAT: &str = "photonlab-progressive-checkpoint-v1";
+/// v2: `sppm` pixels hold 10 numbers (area-probe counts added).
+const CHECKPOINT_FORMAT: &str = "photonlab-progressive-checkpoint-v2";
 
 /// What a checkpoint must match: the configuration without the keys that only say
 /// how long or where to run, and the scene.
@@ -117,9 +118,15 @@ pub fn load_checkpoint<S: DeserializeOwned>(
 ) -> Result<Option<(u32, S)>> {
     let (true, Some(path)) = (prog.resume, &prog.checkpoint_file) else { return Ok(None) };
     let text = std::fs::read_to_string(path).with_context(|| format!("{path}: cannot read the checkpoint to resume from"))?;
-    let c: Checkpoint<S> = serde_json::from_str(&text).with_context(|| format!("{path}: not a readable checkpoint"))?;
-    if c.format != CHECKPOINT_FORMAT || c.integrator != cfg.integrator {
-        bail!("{path}: a checkpoint of `{}` ({}), not of `{}`", c.integrator, c.format, cfg.integrator);
+    // The format first, so a checkpoint of an older version says so.
+    let head: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{path}: not a readable checkpoint"))?;
+    let format = head.get("format").and_then(|f| f.as_str()).unwrap_or("none");
+    if format != CHECKPOINT_FORMAT {
+        bail!("{path}: checkpoint format `{format}`, this build reads `{CHECKPOINT_FORMAT}` (re-render from the start)");
+    }
+    let c: Checkpoint<S> = serde_json::from_value(head).with_context(|| format!("{path}: not a readable checkpoint"))?;
+    if c.integrator != cfg.integrator {
+        bail!("{path}: a checkpoint of `{}`, not of `{}`", c.integrator, cfg.integrator);
     }
     if c.key != checkpoint_key(cfg, world)? {
         bail!("{path}: the checkpoint was written for another configuration or scene (only passes, time_limit and threads may change)");
