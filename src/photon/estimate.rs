@@ -108,7 +108,9 @@ pub fn facing_normal(it: &Interaction, wo: Vec3) -> Vec3 {
 pub fn gather(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32 {
     let thick = prm.disc * prm.max_radius;
     let cos = prm.normal_cos;
-    let filter = |ph: &Photon, q: Vec3| ph.normal().dot(n) >= cos && (q - p).dot(n).abs() <= thick;
+    // The plane test first: it needs only the position, so photons off the plane
+    // (another wall near a corner) never load their payload.
+    let filter = |ph: &Photon, q: Vec3| (q - p).dot(n).abs() <= thick && ph.normal().dot(n) >= cos;
     map.knn(p, prm.k, prm.max_radius * prm.max_radius, heap, &filter)
 }
 

@@ -1,10 +1,12 @@
 //! Christensen's (2000) precomputed irradiance: irradiance estimated at every n-th
-//! stored photon before rendering, kept in its own kd-tree, and looked up at
+//! stored photon before rendering, kept in a grid built for nearest-point queries
+//! ([`super::nearest`]), and looked up at
 //! final-gather hits (the `precomputed` gather, and `irradiance_cache` with
 //! `precomputed_irradiance`).
 
 use super::estimate::{self, EstimateParams, with_heap};
 use super::kdtree::{KdPoint, KdTree};
+use super::nearest::PointGrid;
 use super::record::Photon;
 use crate::accel::TraversalStats;
 use crate::math::Color;
@@ -29,6 +31,54 @@ impl KdPoint for IrradiancePoint {
     }
 }
 
+/// Precomputed irradiance points in a grid built for nearest-point lookups
+/// ([`PointGrid`]; a lookup is one per final-gather ray). The grid holds what the
+/// lookup's filter reads, each point's normal beside its position (24 bytes a point);
+/// the irradiance, in grid order apart, is read for the point found only.
+#[derive(Clone, Debug, Default)]
+pub struct PrecomputedIrradiance {
+    /// Normals of the points.
+    grid: PointGrid<Vec3>,
+    /// Irradiance in grid order.
+    irradiance: Vec<Color>,
+}
+
+impl PrecomputedIrradiance {
+    /// Indexes `points` for lookups.
+    pub fn new(points: Vec<IrradiancePoint>) -> Self {
+        let pos: Vec<Vec3> = points.iter().map(|p| p.pos).collect();
+        let grid = PointGrid::build(&pos, points.iter().map(|p| p.normal).collect());
+        let irradiance = (0..grid.len()).map(|i| points[grid.source(i)].irradiance).collect();
+        PrecomputedIrradiance { grid, irradiance }
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.grid.len()
+    }
+
+    /// True when there are none.
+    pub fn is_empty(&self) -> bool {
+        self.grid.is_empty()
+    }
+
+    /// Point `i` (lookup order).
+    pub fn point(&self, i: usize) -> IrradiancePoint {
+        IrradiancePoint { pos: self.grid.position(i), normal: *self.grid.item(i), irradiance: self.irradiance[i] }
+    }
+
+    /// Irradiance of the nearest precomputed point within `radius` whose normal
+    /// agrees with `n` (so it was lit from the side the query looks from) and that
+    /// lies within `thickness` of the query's tangent plane — without the plane test a
+    /// parallel surface a little above or below (the other side of a thin slab, a
+    /// lamp over a roof) lends its irradiance through the wall.
+    #[inline]
+    pub fn lookup(&self, p: Vec3, n: Vec3, radius: f32, thickness: f32) -> Option<Color> {
+        let filter = |q: &Vec3, pos: Vec3| q.dot(n) >= 0.7 && (pos - p).dot(n).abs() <= thickness;
+        self.grid.nearest(p, radius * radius, &filter).map(|(i, _)| self.irradiance[i])
+    }
+}
+
 /// Computes irradiance at every `stride`-th photon of `global` (in parallel; the
 /// result is independent of the thread count).
 ///
@@ -36,7 +86,7 @@ impl KdPoint for IrradiancePoint {
 /// region rather than the disc's ([`estimate::coverage`]), so points on thin or
 /// curved geometry and near edges are not darkened by the part of the disc that
 /// holds no surface.
-pub fn precompute(world: &World, global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) -> KdTree<IrradiancePoint> {
+pub fn precompute(world: &World, global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) -> PrecomputedIrradiance {
     let pts: Vec<IrradiancePoint> = (0..global.len())
         .into_par_iter()
         .step_by(stride.max(1))
@@ -47,17 +97,10 @@ pub fn precompute(world: &World, global: &KdTree<Photon>, stride: usize, prm: &E
             IrradiancePoint { pos, normal: n, irradiance: e }
         })
         .collect();
-    KdTree::build(pts)
+    PrecomputedIrradiance::new(pts)
 }
 
-/// Irradiance of the nearest precomputed point within `radius` whose normal agrees
-/// with `n` (so it was lit from the side the query looks from) and that lies within
-/// `thickness` of the query's tangent plane — without the plane test a parallel
-/// surface a little above or below (the other side of a thin slab, a lamp over a
-/// roof) lends its irradiance through the wall.
-pub fn lookup(tree: &KdTree<IrradiancePoint>, p: Vec3, n: Vec3, radius: f32, thickness: f32) -> Option<Color> {
-    with_heap(|h| {
-        tree.knn(p, 1, radius * radius, h, &|q: &IrradiancePoint, pos: Vec3| q.normal.dot(n) >= 0.7 && (pos - p).dot(n).abs() <= thickness);
-        h.items.first().map(|&(_, i)| tree.points[i as usize].irradiance)
-    })
+/// [`PrecomputedIrradiance::lookup`], free-standing.
+pub fn lookup(pre: &PrecomputedIrradiance, p: Vec3, n: Vec3, radius: f32, thickness: f32) -> Option<Color> {
+    pre.lookup(p, n, radius, thickness)
 }

@@ -12,6 +12,7 @@ pub mod emit;
 pub mod estimate;
 pub mod irradiance;
 pub mod kdtree;
+pub mod nearest;
 pub mod record;
 
 use crate::accel::TraversalStats;

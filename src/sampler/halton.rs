@@ -43,6 +43,11 @@ impl HaltonSampler {
     pub fn value(&self, dim: u32) -> f32 {
         frac_to_f32(fraction(&self.tables, self.scramble, self.key, self.index, dim as usize, dim))
     }
+    /// [`HaltonSampler::value`] of another stream key and index.
+    #[inline]
+    fn value_of(&self, key: u64, index: u64, dim: u32) -> f32 {
+        frac_to_f32(fraction(&self.tables, self.scramble, key, index, dim as usize, dim))
+    }
 }
 
 /// Fraction of table dimension `k` (sampler dimension `dim`) with the stream's
@@ -78,6 +83,12 @@ impl Sampler for HaltonSampler {
     }
     fn current(&self) -> (u64, u64) {
         (self.stream, self.index)
+    }
+    fn values_at(&self, stream: u64, index: u64, dim: u32, out: &mut [f32]) {
+        let key = if stream == self.stream { self.key } else { stream_key(self.seed, stream) };
+        for (d, o) in (dim..).zip(out.iter_mut()) {
+            *o = self.value_of(key, index, d);
+        }
     }
     super::dimension_methods!();
 }

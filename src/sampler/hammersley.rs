@@ -36,13 +36,18 @@ impl HammersleySampler {
     }
     #[inline]
     fn value(&self, dim: u32) -> f32 {
+        self.value_of(self.key, self.index, dim)
+    }
+    /// Value of dimension `dim` of sample `index` of the stream with key `key`.
+    #[inline]
+    fn value_of(&self, key: u64, index: u64, dim: u32) -> f32 {
         if dim == 0 {
             // floor((i mod N) / N · 2^32), exact.
-            let f = (((self.index % self.n) as u128) << 32) / self.n as u128;
+            let f = (((index % self.n) as u128) << 32) / self.n as u128;
             let f = f as u32;
-            frac_to_f32(if self.scramble { f.wrapping_add((dim_hash(self.key, 0, 0) >> 32) as u32) } else { f })
+            frac_to_f32(if self.scramble { f.wrapping_add((dim_hash(key, 0, 0) >> 32) as u32) } else { f })
         } else {
-            frac_to_f32(fraction(&self.tables, self.scramble, self.key, self.index, dim as usize - 1, dim))
+            frac_to_f32(fraction(&self.tables, self.scramble, key, index, dim as usize - 1, dim))
         }
     }
 }
@@ -59,6 +64,12 @@ impl Sampler for HammersleySampler {
     }
     fn current(&self) -> (u64, u64) {
         (self.stream, self.index)
+    }
+    fn values_at(&self, stream: u64, index: u64, dim: u32, out: &mut [f32]) {
+        let key = if stream == self.stream { self.key } else { stream_key(self.seed, stream) };
+        for (d, o) in (dim..).zip(out.iter_mut()) {
+            *o = self.value_of(key, index, d);
+        }
     }
     super::dimension_methods!();
 }

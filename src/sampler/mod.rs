@@ -65,6 +65,18 @@ pub trait Sampler: Send + Sync {
     }
     /// A boxed copy (for per-thread use).
     fn clone_box(&self) -> Box<dyn Sampler>;
+    /// Values of dimensions `dim..dim + out.len()` of sample `index` of `stream`:
+    /// what `start(stream, index)`, `set_dimension(dim)` and `out.len()` calls of
+    /// `next_1d` would give, without touching this sampler. The gathers draw their
+    /// rays with it from the samplers their context shares between threads, so a
+    /// shading point needs no clone (the default here clones; every sampler of
+    /// [`make`] overrides it without).
+    fn values_at(&self, stream: u64, index: u64, dim: u32, out: &mut [f32]) {
+        let mut s = self.clone_box();
+        s.start(stream, index);
+        s.set_dimension(dim);
+        out.iter_mut().for_each(|o| *o = s.next_1d());
+    }
 }
 
 /// The [`Sampler`] methods of a sampler whose values are a pure function of the
@@ -183,6 +195,27 @@ mod tests {
             assert!((a - b).abs() < 1e-12);
         }
         assert!((radical_inverse(5, 7) - (2.0 / 5.0 + 1.0 / 25.0)).abs() < 1e-12);
+    }
+
+    /// `values_at` of every sampler equals a fresh start, jump and draws, whatever
+    /// stream the sampler itself is on, and leaves the sampler as it was.
+    #[test]
+    fn values_at_equals_start_and_draws() {
+        for name in NAMES {
+            let mut s = make(name, 11, Some(64)).unwrap();
+            s.start(5, 3);
+            s.set_dimension(4);
+            for (stream, index, dim) in [(5u64, 3u64, 0u32), (5, 7, 2), (9, 0, 0), (9, 63, 5), (123_456, 40, 30), (7, 1 << 33, 1)] {
+                let mut got = [0.0f32; 7];
+                s.values_at(stream, index, dim, &mut got);
+                let mut fresh = make(name, 11, Some(64)).unwrap();
+                fresh.start(stream, index);
+                fresh.set_dimension(dim);
+                let want: Vec<f32> = (0..7).map(|_| fresh.next_1d()).collect();
+                assert_eq!(got.to_vec(), want, "{name} stream {stream} index {index} dim {dim}");
+                assert_eq!((s.current(), s.dimension()), ((5, 3), 4), "{name}: values_at moved the sampler");
+            }
+        }
     }
 
     #[test]

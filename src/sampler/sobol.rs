@@ -247,6 +247,13 @@ impl Sampler for SobolSampler {
     fn current(&self) -> (u64, u64) {
         (self.stream, (self.high << 32) | self.index as u64)
     }
+    fn values_at(&self, stream: u64, index: u64, dim: u32, out: &mut [f32]) {
+        // A copy on the stack (no shared tables to count references to).
+        let mut s = self.clone();
+        s.start(stream, index);
+        s.dim = dim;
+        out.iter_mut().for_each(|o| *o = s.next_1d());
+    }
     super::dimension_methods!();
 }
 

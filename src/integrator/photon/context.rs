@@ -11,7 +11,7 @@ use crate::material::{Bsdf, TransportMode};
 use crate::math::{Color, Frame, cosine_hemisphere, hash_words, u32_to_unit};
 use crate::photon::PhotonMaps;
 use crate::photon::estimate::{self, EstimateParams, facing_normal, facing_shading_normal, with_heap};
-use crate::photon::irradiance::{self, IrradiancePoint};
+use crate::photon::irradiance::PrecomputedIrradiance;
 use crate::photon::kdtree::KdTree;
 use crate::photon::record::Photon;
 use crate::sampler::Sampler;
@@ -97,7 +97,7 @@ pub struct PhotonContext {
     /// Parameters of caustic estimates.
     pub est_caustic: EstimateParams,
     /// Christensen's precomputed irradiance points, when enabled.
-    pub precomputed: Option<KdTree<IrradiancePoint>>,
+    pub precomputed: Option<PrecomputedIrradiance>,
     /// Search radius for precomputed points.
     pub precomputed_radius: f32,
     /// Final-gather sampler per level (sample count fixed per level).
@@ -122,12 +122,12 @@ impl PhotonContext {
         let GatherPoint { world, it, wo, bsdf, key } = *at;
         let key = key.child(0xD1);
         let n = self.direct_samples.max(1);
-        let mut s = self.direct_sampler.clone_box();
         let mut sum = Color::ZERO;
         for j in 0..n {
-            s.start(key.0, j as u64);
-            let u_sel = s.next_1d();
-            let u = s.next_2d();
+            // The shared sampler's values, drawn without a per-point clone.
+            let mut v = [0.0f32; 3];
+            self.direct_sampler.values_at(key.0, j as u64, 0, &mut v);
+            let (u_sel, u) = (v[0], [v[1], v[2]]);
             let Some(ls) = world.lights.sample_li(&world.scene, it.p, u_sel, u) else { continue };
             if ls.pdf <= 0.0 {
                 continue;
@@ -161,7 +161,7 @@ impl PhotonContext {
         if let Some(pre) = &self.precomputed {
             let n = facing_normal(it, wo);
             let thickness = self.est_global.disc * self.precomputed_radius;
-            if let Some(e) = irradiance::lookup(pre, it.p, n, self.precomputed_radius, thickness) {
+            if let Some(e) = pre.lookup(it.p, n, self.precomputed_radius, thickness) {
                 let mut l = bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e;
                 if bsdf.has_glossy() {
                     l += with_heap(|h| {
@@ -233,12 +233,13 @@ impl PhotonContext {
     pub fn final_gather(&self, at: &GatherPoint, level: usize, stats: &mut TraversalStats) -> GatherResult {
         let GatherPoint { world, it, wo, key, .. } = *at;
         let n = self.gather_counts[level].max(1);
-        let mut s = self.gather_samplers[level].clone_box();
+        let s = &self.gather_samplers[level];
         let frame = Frame::new(facing_shading_normal(it, wo));
         let (mut irr, mut inv_d) = (Color::ZERO, 0.0f32);
         for j in 0..n {
-            s.start(key.0, j as u64);
-            let wi = frame.to_world(cosine_hemisphere(s.next_2d()));
+            let mut u = [0.0f32; 2];
+            s.values_at(key.0, j as u64, 0, &mut u);
+            let wi = frame.to_world(cosine_hemisphere(u));
             if wi.dot(it.sp.ng) * wo.dot(it.sp.ng) <= 0.0 {
                 continue;
             }
@@ -260,12 +261,12 @@ impl PhotonContext {
             return Color::ZERO;
         }
         let n = self.glossy_samples.max(1);
-        let mut s = self.glossy_sampler.clone_box();
         let key = key.child(0x6105);
         let mut sum = Color::ZERO;
         for j in 0..n {
-            s.start(key.0, j as u64);
-            let Some((wi, w)) = bsdf.sample_glossy(&it.sp, wo, s.next_2d()) else { continue };
+            let mut u = [0.0f32; 2];
+            self.glossy_sampler.values_at(key.0, j as u64, 0, &mut u);
+            let Some((wi, w)) = bsdf.sample_glossy(&it.sp, wo, u) else { continue };
             let (l, _) = self.gather_ray(world, world.spawn(it, wi), level, key.child(j as u64 + 1), stats);
             sum += w * l;
         }

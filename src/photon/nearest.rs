@@ -1,0 +1,434 @@
+//! Uniform grid for exact nearest-point queries with a filter: the lookup structure
+//! of precomputed irradiance, which answers tens of millions of k = 1 queries per
+//! render (one per final-gather ray).
+//!
+//! Points are counting-sorted by cell, cells numbered tile by tile (4³ cells, x
+//! fastest), so a row of cells along x inside a tile is one contiguous range and the
+//! rows a query reads lie close together; each point's (small) payload sits beside its position, so
+//! the filter reads the cache line the distance test loaded. A query scans the
+//! cells overlapping the box of half-width ρ about it, starting at ρ = half a cell
+//! (2 × 2 × 2 cells, 4 contiguous ranges):
+//! when the best point passing the filter lies within ρ, every point closer than it
+//! was in the box, so the answer is exact; otherwise ρ doubles (up to the search
+//! radius) and only the cells not yet scanned are read.
+//!
+//! Against the kd-tree's k = 1 search this reads a few short contiguous ranges
+//! instead of a root-to-leaf descent with its dependent loads and back-tracking.
+//! The cell size follows the points' own spacing ([`CELL_SPACINGS`] × the median
+//! distance from a point to its nearest neighbour, measured on a sample); the dense
+//! grid is capped at 4 cells per point.
+
+use glam::Vec3;
+
+/// Points of a grid built over at most this many cells per point (plus a constant).
+const CELLS_PER_POINT: usize = 4;
+/// Cell side in median nearest-neighbour distances: about a dozen points per cell
+/// of a surface, so the first box (one cell wide) nearly always holds the answer.
+const CELL_SPACINGS: f32 = 4.0;
+/// Points sampled to measure the spacing.
+const SPACING_SAMPLE: usize = 2048;
+
+/// A point and its payload, side by side: a cell's points and what the filter reads
+/// of them share cache lines.
+#[derive(Clone, Copy, Debug)]
+pub struct GridEntry<T> {
+    /// Position.
+    pub pos: Vec3,
+    /// Payload.
+    pub item: T,
+}
+
+/// A uniform grid of points with (small) payloads, for nearest-point queries.
+#[derive(Clone, Debug)]
+pub struct PointGrid<T> {
+    origin: Vec3,
+    cell: f32,
+    inv_cell: f32,
+    dims: [i64; 3],
+    /// Tiles of TILE³ cells per axis.
+    tiles: [i64; 3],
+    /// Start of each cell's points (cells + 1 entries), cells in tile order.
+    start: Vec<u32>,
+    /// Points in grid order.
+    entries: Vec<GridEntry<T>>,
+    /// Input index of each point (grid order).
+    order: Vec<u32>,
+}
+
+impl<T> Default for PointGrid<T> {
+    fn default() -> Self {
+        PointGrid {
+            origin: Vec3::ZERO,
+            cell: 1.0,
+            inv_cell: 1.0,
+            dims: [1; 3],
+            tiles: [1; 3],
+            start: vec![0; TILE_CELLS + 1],
+            entries: Vec::new(),
+            order: Vec::new(),
+        }
+    }
+}
+
+/// Cells per tile side: cells are numbered tile by tile (x fastest inside a tile),
+/// so the few rows of cells a query reads, and their points, lie close together in
+/// memory instead of a whole grid row or plane apart.
+const TILE: i64 = 4;
+const TILE_CELLS: usize = (TILE * TILE * TILE) as usize;
+
+/// Rows of cells whose point ranges are read before any is scanned (independent
+/// loads, so their cache misses overlap).
+const ROW_BATCH: usize = 32;
+
+impl<T: Copy> PointGrid<T> {
+    /// Builds the grid over `items` at `positions` (same length), with a cell size
+    /// from the points' spacing. Deterministic: the order within a cell is the input
+    /// order.
+    pub fn build(positions: &[Vec3], items: Vec<T>) -> Self {
+        let n = positions.len().min(items.len());
+        // A first grid with about one cell per point measures the spacing.
+        let (lo, hi) = bounds(&positions[..n]);
+        let ext = (hi - lo).max(Vec3::splat(0.0));
+        let vol_cell = (ext.x.max(1e-30) * ext.y.max(1e-30) * ext.z.max(1e-30) / n.max(1) as f32).cbrt();
+        let rough_cell = if vol_cell.is_finite() && vol_cell > 0.0 { vol_cell } else { ext.max_element().max(1e-6) };
+        let rough = Self::with_cell(&positions[..n], items[..n].to_vec(), rough_cell);
+        let spacing = rough.median_spacing();
+        let cell = if spacing > 0.0 && spacing.is_finite() { CELL_SPACINGS * spacing } else { rough_cell };
+        Self::with_cell(&positions[..n], items[..n].to_vec(), cell)
+    }
+
+    /// Builds the grid with cells of side `cell` (enlarged if the grid would exceed
+    /// [`CELLS_PER_POINT`] cells per point).
+    pub fn with_cell(positions: &[Vec3], items: Vec<T>, cell: f32) -> Self {
+        let n = positions.len().min(items.len());
+        if n == 0 {
+            return Self::default();
+        }
+        let (lo, hi) = bounds(&positions[..n]);
+        let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ZERO) };
+        let ext = hi - lo;
+        let max_cells = (CELLS_PER_POINT * n + 1024).min(1 << 26) as f64;
+        let mut cell = cell.max(ext.max_element() * 1e-6).max(1e-30);
+        let count = |c: f32| ext.to_array().map(|e| ((e / c).floor() as i64 + 1).max(1));
+        let tiles_of = |d: [i64; 3]| d.map(|x| (x + TILE - 1) / TILE);
+        let mut dims = count(cell);
+        while (tiles_of(dims).iter().product::<i64>() * TILE_CELLS as i64) as f64 > max_cells {
+            cell *= 1.25;
+            dims = count(cell);
+        }
+        let tiles = tiles_of(dims);
+        let mut g = PointGrid {
+            origin: lo,
+            cell,
+            inv_cell: 1.0 / cell,
+            dims,
+            tiles,
+            start: Vec::new(),
+            entries: Vec::with_capacity(n),
+            order: Vec::new(),
+        };
+        let cells = tiles.iter().product::<i64>() as usize * TILE_CELLS;
+        let index: Vec<usize> = positions[..n].iter().map(|&p| g.cell_index(g.cell_of(p))).collect();
+        let mut start = vec![0u32; cells + 1];
+        for &c in &index {
+            start[c + 1] += 1;
+        }
+        for c in 0..cells {
+            start[c + 1] += start[c];
+        }
+        let mut at: Vec<u32> = start[..cells].to_vec();
+        let mut order = vec![0u32; n];
+        for (i, &c) in index.iter().enumerate() {
+            order[at[c] as usize] = i as u32;
+            at[c] += 1;
+        }
+        g.entries.extend(order.iter().map(|&i| GridEntry { pos: positions[i as usize], item: items[i as usize] }));
+        g.order = order;
+        g.start = start;
+        g
+    }
+}
+
+impl<T> PointGrid<T> {
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// Side of a cell.
+    pub fn cell_size(&self) -> f32 {
+        self.cell
+    }
+
+    /// Payload of point `i` (grid order).
+    #[inline]
+    pub fn item(&self, i: usize) -> &T {
+        &self.entries[i].item
+    }
+
+    /// Index in the input of point `i` (grid order).
+    #[inline]
+    pub fn source(&self, i: usize) -> usize {
+        self.order[i] as usize
+    }
+
+    /// Position of point `i` (grid order).
+    #[inline]
+    pub fn position(&self, i: usize) -> Vec3 {
+        self.entries[i].pos
+    }
+
+    /// Bytes held (positions, payload, cell starts).
+    pub fn memory_bytes(&self) -> usize {
+        self.entries.len() * std::mem::size_of::<GridEntry<T>>() + self.start.len() * 4
+    }
+
+    /// Unclamped cell coordinate of `v` on `axis`.
+    #[inline(always)]
+    fn coord(&self, v: f32, axis: usize) -> i64 {
+        // `as` saturates (NaN → 0); the callers clamp.
+        ((v - self.origin[axis]) * self.inv_cell).floor() as i64
+    }
+
+    #[inline(always)]
+    fn cell_of(&self, p: Vec3) -> [i64; 3] {
+        [0, 1, 2].map(|a| self.coord(p[a], a).clamp(0, self.dims[a] - 1))
+    }
+
+    #[inline(always)]
+    fn cell_index(&self, c: [i64; 3]) -> usize {
+        let t = c.map(|x| x / TILE);
+        let tile = (t[2] * self.tiles[1] + t[1]) * self.tiles[0] + t[0];
+        let inner = ((c[2] % TILE) * TILE + c[1] % TILE) * TILE + c[0] % TILE;
+        (tile * TILE_CELLS as i64 + inner) as usize
+    }
+
+    /// The nearest point to `p` closer than distance² `max_r2` for which
+    /// `filter(payload, position)` holds: its index (grid order) and distance². Exact
+    /// (ties: the first in grid order).
+    #[inline]
+    pub fn nearest(&self, p: Vec3, max_r2: f32, filter: &impl Fn(&T, Vec3) -> bool) -> Option<(usize, f32)> {
+        if self.entries.is_empty() || max_r2.is_nan() || max_r2 <= 0.0 || !p.is_finite() {
+            return None;
+        }
+        let max_r = max_r2.sqrt();
+        let (mut best, mut found) = (max_r2, None);
+        let mut rho = (0.5 * self.cell).min(max_r);
+        // Cell box already scanned (lo, hi inclusive), if any.
+        let mut done: Option<([i64; 3], [i64; 3])> = None;
+        loop {
+            let mut lo = [0i64; 3];
+            let mut hi = [0i64; 3];
+            let mut empty = false;
+            for a in 0..3 {
+                let (l, h) = (self.coord(p[a] - rho, a), self.coord(p[a] + rho, a));
+                empty |= h < 0 || l > self.dims[a] - 1;
+                lo[a] = l.clamp(0, self.dims[a] - 1);
+                hi[a] = h.clamp(0, self.dims[a] - 1);
+            }
+            if !empty {
+                let mut rows = [(0u32, 0u32); ROW_BATCH];
+                let mut nr = 0;
+                for z in lo[2]..=hi[2] {
+                    for y in lo[1]..=hi[1] {
+                        // Cells x0..=x1 of the row, one contiguous range per tile.
+                        let mut row = |x0: i64, x1: i64| {
+                            let mut x = x0;
+                            while x <= x1 {
+                                let end = x1.min((x / TILE + 1) * TILE - 1);
+                                if nr == ROW_BATCH {
+                                    self.scan_rows(p, &rows, &mut best, &mut found, filter);
+                                    nr = 0;
+                                }
+                                rows[nr] = self.row_range([x, y, z], end);
+                                nr += 1;
+                                x = end + 1;
+                            }
+                        };
+                        match done {
+                            Some((dl, dh)) if (dl[2]..=dh[2]).contains(&z) && (dl[1]..=dh[1]).contains(&y) => {
+                                if lo[0] < dl[0] {
+                                    row(lo[0], dl[0] - 1);
+                                }
+                                if dh[0] < hi[0] {
+                                    row(dh[0] + 1, hi[0]);
+                                }
+                            }
+                            _ => row(lo[0], hi[0]),
+                        }
+                    }
+                }
+                self.scan_rows(p, &rows[..nr], &mut best, &mut found, filter);
+                done = Some((lo, hi));
+            }
+            // Everything closer than the best lies inside the box just scanned.
+            if (found.is_some() && best <= rho * rho) || rho >= max_r {
+                break;
+            }
+            rho = (2.0 * rho).min(max_r);
+        }
+        found.map(|i| (i, best))
+    }
+
+    /// Points of cells `from` … (`to_x`, from.y, from.z), all in one tile: one
+    /// contiguous range.
+    #[inline(always)]
+    fn row_range(&self, from: [i64; 3], to_x: i64) -> (u32, u32) {
+        let c0 = self.cell_index(from);
+        let c1 = c0 + (to_x - from[0]) as usize;
+        (self.start[c0], self.start[c1 + 1])
+    }
+
+    /// Tests the points of the given ranges.
+    #[inline(always)]
+    fn scan_rows(&self, p: Vec3, rows: &[(u32, u32)], best: &mut f32, found: &mut Option<usize>, filter: &impl Fn(&T, Vec3) -> bool) {
+        for &(a, b) in rows {
+            let (a, b) = (a as usize, b as usize);
+            for (j, e) in self.entries[a..b].iter().enumerate() {
+                let d2 = (e.pos - p).length_squared();
+                if d2 < *best && filter(&e.item, e.pos) {
+                    *best = d2;
+                    *found = Some(a + j);
+                }
+            }
+        }
+    }
+
+    /// Median distance from a point to its nearest other point, over a sample
+    /// (0 when fewer than two distinct points).
+    fn median_spacing(&self) -> f32 {
+        let n = self.len();
+        if n < 2 {
+            return 0.0;
+        }
+        let step = (n / SPACING_SAMPLE).max(1);
+        let mut d: Vec<f32> = (0..n)
+            .step_by(step)
+            .filter_map(|i| {
+                let p = self.position(i);
+                let far = (self.dims[0].max(self.dims[1]).max(self.dims[2]) as f32 + 1.0) * self.cell;
+                self.nearest(p, far * far * 3.0, &|_, q| q != p).map(|(_, d2)| d2.sqrt())
+            })
+            .collect();
+        if d.is_empty() {
+            return 0.0;
+        }
+        let m = d.len() / 2;
+        *d.select_nth_unstable_by(m, f32::total_cmp).1
+    }
+}
+
+/// Bounds of the finite positions (lo > hi when there are none).
+fn bounds(positions: &[Vec3]) -> (Vec3, Vec3) {
+    positions.iter().filter(|p| p.is_finite()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{hash_words, u32_to_unit};
+
+    fn rnd(k: u64, j: u64) -> f32 {
+        u32_to_unit(hash_words(&[k, j, 77]) as u32)
+    }
+
+    /// Points in a box, most on its faces (with the face's inward normal), some
+    /// inside with random normals.
+    fn points(n: usize) -> (Vec<Vec3>, Vec<(Vec3, u32)>) {
+        let mut pos = Vec::new();
+        let mut items = Vec::new();
+        for i in 0..n as u64 {
+            let mut v = Vec3::new(rnd(i, 0), rnd(i, 1), rnd(i, 2)) * Vec3::new(3.0, 1.0, 0.5) - 0.25;
+            let mut nrm = Vec3::new(rnd(i, 5) - 0.5, rnd(i, 6) - 0.5, rnd(i, 7) - 0.5).normalize_or_zero();
+            if i % 5 != 0 {
+                let a = (hash_words(&[i, 9]) % 3) as usize;
+                let high = rnd(i, 4) < 0.5;
+                v[a] = if high { [2.75, 0.75, 0.25][a] } else { -0.25 };
+                nrm = Vec3::ZERO;
+                nrm[a] = if high { -1.0 } else { 1.0 };
+            }
+            pos.push(v);
+            items.push((nrm, i as u32));
+        }
+        (pos, items)
+    }
+
+    #[test]
+    fn nearest_equals_brute_force_with_filter() {
+        let (pos, items) = points(4000);
+        let g = PointGrid::build(&pos, items.clone());
+        assert_eq!(g.len(), pos.len());
+        let mut seen = vec![false; pos.len()];
+        for i in 0..g.len() {
+            let (_, id) = *g.item(i);
+            assert!(!seen[id as usize]);
+            seen[id as usize] = true;
+            assert_eq!(g.position(i), pos[id as usize]);
+        }
+        let mut hits = 0;
+        for q in 0..3000u64 {
+            // Queries on the faces, inside and outside the box.
+            let mut p = Vec3::new(rnd(q, 10), rnd(q, 11), rnd(q, 12)) * Vec3::new(3.6, 1.6, 1.1) - 0.55;
+            if q % 2 == 0 {
+                let a = (q / 2 % 3) as usize;
+                p[a] = if q % 4 == 0 { [2.75, 0.75, 0.25][a] } else { -0.25 };
+            }
+            let n = Vec3::new(rnd(q, 13) - 0.5, rnd(q, 14) - 0.5, rnd(q, 15) - 0.5).normalize_or_zero();
+            for (max_r, thick) in [(0.05f32, 0.01f32), (0.3, 0.05), (10.0, 10.0)] {
+                let filter = |it: &(Vec3, u32), at: Vec3| it.0.dot(n) >= 0.7 && (at - p).dot(n).abs() <= thick;
+                let got = g.nearest(p, max_r * max_r, &filter);
+                let want = pos
+                    .iter()
+                    .zip(&items)
+                    .filter(|(x, it)| filter(it, **x))
+                    .map(|(x, it)| ((*x - p).length_squared(), it.1))
+                    .filter(|&(d2, _)| d2 < max_r * max_r)
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                match (got, want) {
+                    (None, None) => {}
+                    (Some((i, d2)), Some((wd2, wid))) => {
+                        hits += 1;
+                        assert_eq!(d2, wd2, "query {q}");
+                        assert_eq!(d2, (g.position(i) - p).length_squared());
+                        // Exact ties aside, the same point.
+                        if g.item(i).1 != wid {
+                            assert_eq!((pos[wid as usize] - p).length_squared(), d2);
+                        }
+                    }
+                    (got, want) => panic!("query {q} r {max_r}: {got:?} vs {want:?}"),
+                }
+            }
+        }
+        assert!(hits > 2000, "{hits}");
+    }
+
+    #[test]
+    fn degenerate_grids() {
+        let g: PointGrid<u32> = PointGrid::build(&[], Vec::new());
+        assert!(g.is_empty() && g.nearest(Vec3::ZERO, 1.0, &|_, _| true).is_none());
+        // One point; all points equal; a flat set; a non-finite point; far queries.
+        let one = PointGrid::build(&[Vec3::ONE], vec![7u32]);
+        assert_eq!(one.nearest(Vec3::ZERO, 4.0, &|_, _| true), Some((0, 3.0)));
+        assert_eq!(one.nearest(Vec3::ZERO, 2.9, &|_, _| true), None);
+        assert_eq!(one.nearest(Vec3::NAN, 4.0, &|_, _| true), None);
+        let mut same: Vec<Vec3> = vec![Vec3::splat(2.0); 50];
+        same.push(Vec3::new(f32::NAN, 0.0, 0.0));
+        let g = PointGrid::build(&same, (0..51u32).collect());
+        let (i, d2) = g.nearest(Vec3::new(2.0, 2.0, 3.0), 100.0, &|&v, _| v == 30).unwrap();
+        assert_eq!((*g.item(i), d2), (30, 1.0));
+        let flat: Vec<Vec3> = (0..400).map(|i| Vec3::new((i % 20) as f32, 0.5, (i / 20) as f32)).collect();
+        let g = PointGrid::build(&flat, (0..400u32).collect());
+        let (i, d2) = g.nearest(Vec3::new(3.2, 0.5, 7.1), 1e6, &|_, _| true).unwrap();
+        assert_eq!(*g.item(i), 7 * 20 + 3);
+        assert!((d2 - 0.05).abs() < 1e-5);
+        // Far outside the grid, the search grows until it reaches the points.
+        let (i, _) = g.nearest(Vec3::new(-50.0, 40.0, -50.0), 1e6, &|_, _| true).unwrap();
+        assert_eq!(*g.item(i), 0);
+        assert!(g.nearest(Vec3::new(-50.0, 40.0, -50.0), 100.0, &|_, _| true).is_none());
+    }
+}
