@@ -14,7 +14,7 @@ mod mirror;
 
 pub use dielectric::Dielectric;
 pub use glossy::Glossy;
-pub use lambertian::Lambertian;
+pub use lambertian::{Lambertian, Reflects as LambertianReflects};
 pub use mirror::Mirror;
 
 use crate::math::{Color, Frame};

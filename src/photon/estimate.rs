@@ -3,10 +3,11 @@
 //! that lie in a thin disc around the tangent plane are counted.
 
 use super::kdtree::{KdTree, KnnHeap};
+use super::nearest::PhotonGrid;
 use super::record::Photon;
 use crate::accel::TraversalStats;
 use crate::geometry::Ray;
-use crate::material::Bsdf;
+use crate::material::{Bsdf, LambertianReflects};
 use crate::math::{Color, Frame, u32_to_unit};
 use crate::world::{Interaction, World};
 use glam::Vec3;
@@ -102,16 +103,68 @@ pub fn facing_normal(it: &Interaction, wo: Vec3) -> Vec3 {
     if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng }
 }
 
-/// Gathers the photons an estimate at `it` would use (for callers that need them
+/// A photon map an estimate can search: the k nearest photons inside the
+/// estimate's disc ([`gather`]) and the photons found, by index.
+pub trait PhotonSearch {
+    /// Runs the estimate's search at `p` (facing normal `n`): the k nearest photons
+    /// within `max_radius`, within the disc's half-thickness of the tangent plane,
+    /// whose normals agree with `n`. Results in `heap.items`; returns r² (the k-th
+    /// distance², or `max_radius`² when fewer were found).
+    fn gather(&self, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32;
+    /// Photon `i` of a search's results.
+    fn photon(&self, i: usize) -> &Photon;
+    /// Position of photon `i` of a search's results.
+    fn photon_position(&self, i: usize) -> Vec3;
+    /// True when the map holds no photon.
+    fn is_empty(&self) -> bool;
+}
+
+impl PhotonSearch for KdTree<Photon> {
+    #[inline]
+    fn gather(&self, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32 {
+        let thick = prm.disc * prm.max_radius;
+        let cos = prm.normal_cos;
+        // The plane test first: it needs only the position, so photons off the plane
+        // (another wall near a corner) never load their payload.
+        let filter = |ph: &Photon, q: Vec3| (q - p).dot(n).abs() <= thick && ph.normal().dot(n) >= cos;
+        self.knn(p, prm.k, prm.max_radius * prm.max_radius, heap, &filter)
+    }
+    #[inline]
+    fn photon(&self, i: usize) -> &Photon {
+        &self.points[i]
+    }
+    #[inline]
+    fn photon_position(&self, i: usize) -> Vec3 {
+        self.position(i)
+    }
+    fn is_empty(&self) -> bool {
+        KdTree::is_empty(self)
+    }
+}
+
+impl PhotonSearch for PhotonGrid {
+    #[inline]
+    fn gather(&self, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32 {
+        self.knn_disc(p, n, prm.disc * prm.max_radius, prm.normal_cos, prm.k, prm.max_radius * prm.max_radius, heap)
+    }
+    #[inline]
+    fn photon(&self, i: usize) -> &Photon {
+        PhotonGrid::photon(self, i)
+    }
+    #[inline]
+    fn photon_position(&self, i: usize) -> Vec3 {
+        self.position(i)
+    }
+    fn is_empty(&self) -> bool {
+        PhotonGrid::is_empty(self)
+    }
+}
+
+/// Gathers the photons an estimate at `p` would use (for callers that need them
 /// more than once); returns r².
 #[inline]
-pub fn gather(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32 {
-    let thick = prm.disc * prm.max_radius;
-    let cos = prm.normal_cos;
-    // The plane test first: it needs only the position, so photons off the plane
-    // (another wall near a corner) never load their payload.
-    let filter = |ph: &Photon, q: Vec3| (q - p).dot(n).abs() <= thick && ph.normal().dot(n) >= cos;
-    map.knn(p, prm.k, prm.max_radius * prm.max_radius, heap, &filter)
+pub fn gather<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32 {
+    map.gather(p, n, prm, heap)
 }
 
 /// The shading normal turned to the viewer's side (the side `wo` leaves on).
@@ -122,21 +175,52 @@ pub fn facing_shading_normal(it: &Interaction, wo: Vec3) -> Vec3 {
 
 /// Reflected radiance towards `wo` at `it` from the photons of `map` (eq. 10),
 /// evaluating the BSDF per photon.
-pub fn radiance(map: &KdTree<Photon>, it: &Interaction, wo: Vec3, bsdf: &Bsdf, prm: &EstimateParams, heap: &mut KnnHeap) -> Color {
-    radiance_with(map, it, wo, prm, heap, |wi| bsdf.eval(&it.sp, wo, wi))
+pub fn radiance<M: PhotonSearch + ?Sized>(
+    map: &M,
+    it: &Interaction,
+    wo: Vec3,
+    bsdf: &Bsdf,
+    prm: &EstimateParams,
+    heap: &mut KnnHeap,
+) -> Color {
+    match bsdf {
+        // The common case, without a BSDF evaluation per photon: albedo/π times the
+        // summed power of the photons the surface reflects towards `wo` (which needs
+        // only the signs of their directions, so no normalisation either).
+        Bsdf::Lambertian(m) => {
+            let test = LambertianReflects::towards(&it.sp, wo);
+            radiance_sum(map, it, wo, prm, heap, |ph| if test.from(ph.direction_unnormalised()) { ph.power() } else { Color::ZERO })
+                * (m.albedo * std::f32::consts::FRAC_1_PI)
+        }
+        _ => radiance_with(map, it, wo, prm, heap, |wi| bsdf.eval(&it.sp, wo, wi)),
+    }
 }
 
 /// Radiance estimate with an arbitrary reflectance `f(wi)` per photon (e.g. only the
 /// glossy lobe, when the diffuse part comes from precomputed irradiance). Only
 /// photons that arrived on the side the query looks from count: their stored normal
 /// (the geometric normal on their arrival side) must agree with the one facing `wo`.
-pub fn radiance_with(
-    map: &KdTree<Photon>,
+pub fn radiance_with<M: PhotonSearch + ?Sized>(
+    map: &M,
     it: &Interaction,
     wo: Vec3,
     prm: &EstimateParams,
     heap: &mut KnnHeap,
     f: impl Fn(Vec3) -> Color,
+) -> Color {
+    radiance_sum(map, it, wo, prm, heap, |ph| f(ph.direction()) * ph.power())
+}
+
+/// The estimate Σ w·`term(photon)` / (norm·π r²) over the photons gathered at `it`
+/// (facing `wo`).
+#[inline]
+fn radiance_sum<M: PhotonSearch + ?Sized>(
+    map: &M,
+    it: &Interaction,
+    wo: Vec3,
+    prm: &EstimateParams,
+    heap: &mut KnnHeap,
+    term: impl Fn(&Photon) -> Color,
 ) -> Color {
     if map.is_empty() {
         return Color::ZERO;
@@ -148,20 +232,19 @@ pub fn radiance_with(
     }
     let mut sum = Color::ZERO;
     for &(d2, i) in &heap.items {
-        let ph = &map.points[i as usize];
-        sum += f(ph.direction()) * ph.power() * prm.filter.weight(d2 / r2);
+        sum += term(map.photon(i as usize)) * prm.filter.weight(d2 / r2);
     }
     sum / (prm.filter_norm * std::f32::consts::PI * r2)
 }
 
 /// Irradiance at a point with normal `n` (photons arriving on `n`'s side), as used by
 /// precomputed irradiance: E = Σ Φ w / (norm·π r²).
-pub fn irradiance(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> Color {
+pub fn irradiance<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> Color {
     irradiance_r2(map, p, n, prm, heap).0
 }
 
 /// [`irradiance`] and the squared radius it used (0 without photons).
-fn irradiance_r2(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> (Color, f32) {
+fn irradiance_r2<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> (Color, f32) {
     if map.is_empty() {
         return (Color::ZERO, 0.0);
     }
@@ -171,7 +254,7 @@ fn irradiance_r2(map: &KdTree<Photon>, p: Vec3, n: Vec3, prm: &EstimateParams, h
     }
     let mut sum = Color::ZERO;
     for &(d2, i) in &heap.items {
-        sum += map.points[i as usize].power() * prm.filter.weight(d2 / r2);
+        sum += map.photon(i as usize).power() * prm.filter.weight(d2 / r2);
     }
     (sum / (prm.filter_norm * std::f32::consts::PI * r2), r2)
 }
@@ -235,9 +318,9 @@ pub fn coverage(world: &World, p: Vec3, n: Vec3, r2: f32, prm: &EstimateParams, 
 
 /// Irradiance estimate whose area is the surface inside the region ([`coverage`]),
 /// not the disc: [`irradiance`] divided by the covered fraction.
-pub fn irradiance_covered(
+pub fn irradiance_covered<M: PhotonSearch + ?Sized>(
     world: &World,
-    map: &KdTree<Photon>,
+    map: &M,
     p: Vec3,
     n: Vec3,
     prm: &EstimateParams,
@@ -258,7 +341,7 @@ pub fn irradiance_covered(
 /// with a filled disc within about 1.5 standard errors. A disc hanging over an edge
 /// shifts the mean; a strip (column, beam) narrows one eigenvalue and widens the other.
 /// Uneven lighting also fails the test, which only costs the probes.
-fn fills_disc(map: &KdTree<Photon>, heap: &KnnHeap, p: Vec3, n: Vec3, r2: f32) -> bool {
+fn fills_disc<M: PhotonSearch + ?Sized>(map: &M, heap: &KnnHeap, p: Vec3, n: Vec3, r2: f32) -> bool {
     let count = heap.items.len();
     if count < 16 || r2 <= 0.0 {
         return false;
@@ -267,7 +350,7 @@ fn fills_disc(map: &KdTree<Photon>, heap: &KnnHeap, p: Vec3, n: Vec3, r2: f32) -
     let inv_r = 1.0 / r2.sqrt();
     let (mut su, mut sv, mut suu, mut svv, mut suv) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
     for &(_, i) in &heap.items {
-        let d = (map.position(i as usize) - p) * inv_r;
+        let d = (map.photon_position(i as usize) - p) * inv_r;
         let (u, v) = (d.dot(f.s), d.dot(f.t));
         (su, sv, suu, svv, suv) = (su + u, sv + v, suu + u * u, svv + v * v, suv + u * v);
     }

@@ -5,9 +5,8 @@
 //! `precomputed_irradiance`).
 
 use super::estimate::{self, EstimateParams, with_heap};
-use super::kdtree::{KdPoint, KdTree};
-use super::nearest::PointGrid;
-use super::record::Photon;
+use super::kdtree::KdPoint;
+use super::nearest::{PhotonGrid, PointGrid};
 use crate::accel::TraversalStats;
 use crate::math::Color;
 use crate::world::World;
@@ -86,12 +85,12 @@ impl PrecomputedIrradiance {
 /// region rather than the disc's ([`estimate::coverage`]), so points on thin or
 /// curved geometry and near edges are not darkened by the part of the disc that
 /// holds no surface.
-pub fn precompute(world: &World, global: &KdTree<Photon>, stride: usize, prm: &EstimateParams) -> PrecomputedIrradiance {
+pub fn precompute(world: &World, global: &PhotonGrid, stride: usize, prm: &EstimateParams) -> PrecomputedIrradiance {
     let pts: Vec<IrradiancePoint> = (0..global.len())
         .into_par_iter()
         .step_by(stride.max(1))
         .map(|i| {
-            let (n, pos) = (global.points[i].normal(), global.position(i));
+            let (n, pos) = (global.photon(i).normal(), global.position(i));
             let mut stats = TraversalStats::default();
             let e = with_heap(|h| estimate::irradiance_covered(world, global, pos, n, prm, h, &mut stats));
             IrradiancePoint { pos, normal: n, irradiance: e }

@@ -87,7 +87,7 @@ impl KnnHeap {
     /// nearest are selected (in linear time) and `max_r2` shrinks to the k-th
     /// distance: amortised O(1) per candidate, with no per-candidate sifting.
     #[inline(always)]
-    fn push(&mut self, k: usize, d2: f32, i: u32, max_r2: &mut f32) {
+    pub(crate) fn push(&mut self, k: usize, d2: f32, i: u32, max_r2: &mut f32) {
         self.items.push((d2, i));
         let n = self.items.len();
         if n == k {
@@ -99,8 +99,9 @@ impl KnnHeap {
 
     /// Keeps the k nearest candidates; returns the k-th distance².
     #[cold]
-    fn keep_nearest(&mut self, k: usize) -> f32 {
-        self.items.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0));
+    pub(crate) fn keep_nearest(&mut self, k: usize) -> f32 {
+        // Distances are never negative, so their bits order them: an integer compare.
+        self.items.select_nth_unstable_by_key(k - 1, |e| e.0.to_bits());
         self.items.truncate(k);
         self.items[k - 1].0
     }

@@ -133,6 +133,19 @@ fn lit_area(world: &World, photons: &[RawPhoton]) -> f64 {
         .sum()
 }
 
+/// Every stored photon (direct, indirect, caustic) at its stored position, in one
+/// grid searched by estimates of `k` photons at final-gather hits.
+pub fn global_grid(maps: &PhotonMaps, k: usize) -> nearest::PhotonGrid {
+    let trees = [&maps.direct, &maps.indirect, &maps.caustic];
+    let total = trees.iter().map(|t| t.len()).sum();
+    let (mut pos, mut photons) = (Vec::with_capacity(total), Vec::with_capacity(total));
+    for t in trees {
+        pos.par_extend((0..t.len()).into_par_iter().map(|i| t.position(i)));
+        photons.extend_from_slice(&t.points);
+    }
+    nearest::PhotonGrid::build(&pos, photons, k)
+}
+
 /// The radius that holds `k` photons where `stored` photons spread evenly over
 /// `area` (mean density); `None` without photons.
 pub fn mean_density_radius(k: usize, stored: usize, area: f64) -> Option<f32> {

@@ -20,6 +20,9 @@
 
 use glam::Vec3;
 
+mod photons;
+pub use photons::PhotonGrid;
+
 /// Points of a grid built over at most this many cells per point (plus a constant).
 const CELLS_PER_POINT: usize = 4;
 /// Cell side in median nearest-neighbour distances: about a dozen points per cell
@@ -85,6 +88,12 @@ impl<T: Copy> PointGrid<T> {
     /// from the points' spacing. Deterministic: the order within a cell is the input
     /// order.
     pub fn build(positions: &[Vec3], items: Vec<T>) -> Self {
+        Self::build_spaced(positions, items, CELL_SPACINGS)
+    }
+
+    /// Builds the grid with cells `spacings` × the points' median nearest-neighbour
+    /// distance.
+    fn build_spaced(positions: &[Vec3], items: Vec<T>, spacings: f32) -> Self {
         let n = positions.len().min(items.len());
         // A first grid with about one cell per point measures the spacing.
         let (lo, hi) = bounds(&positions[..n]);
@@ -93,7 +102,7 @@ impl<T: Copy> PointGrid<T> {
         let rough_cell = if vol_cell.is_finite() && vol_cell > 0.0 { vol_cell } else { ext.max_element().max(1e-6) };
         let rough = Self::with_cell(&positions[..n], items[..n].to_vec(), rough_cell);
         let spacing = rough.median_spacing();
-        let cell = if spacing > 0.0 && spacing.is_finite() { CELL_SPACINGS * spacing } else { rough_cell };
+        let cell = if spacing > 0.0 && spacing.is_finite() { spacings * spacing } else { rough_cell };
         Self::with_cell(&positions[..n], items[..n].to_vec(), cell)
     }
 
@@ -222,50 +231,7 @@ impl<T> PointGrid<T> {
         // Cell box already scanned (lo, hi inclusive), if any.
         let mut done: Option<([i64; 3], [i64; 3])> = None;
         loop {
-            let mut lo = [0i64; 3];
-            let mut hi = [0i64; 3];
-            let mut empty = false;
-            for a in 0..3 {
-                let (l, h) = (self.coord(p[a] - rho, a), self.coord(p[a] + rho, a));
-                empty |= h < 0 || l > self.dims[a] - 1;
-                lo[a] = l.clamp(0, self.dims[a] - 1);
-                hi[a] = h.clamp(0, self.dims[a] - 1);
-            }
-            if !empty {
-                let mut rows = [(0u32, 0u32); ROW_BATCH];
-                let mut nr = 0;
-                for z in lo[2]..=hi[2] {
-                    for y in lo[1]..=hi[1] {
-                        // Cells x0..=x1 of the row, one contiguous range per tile.
-                        let mut row = |x0: i64, x1: i64| {
-                            let mut x = x0;
-                            while x <= x1 {
-                                let end = x1.min((x / TILE + 1) * TILE - 1);
-                                if nr == ROW_BATCH {
-                                    self.scan_rows(p, &rows, &mut best, &mut found, filter);
-                                    nr = 0;
-                                }
-                                rows[nr] = self.row_range([x, y, z], end);
-                                nr += 1;
-                                x = end + 1;
-                            }
-                        };
-                        match done {
-                            Some((dl, dh)) if (dl[2]..=dh[2]).contains(&z) && (dl[1]..=dh[1]).contains(&y) => {
-                                if lo[0] < dl[0] {
-                                    row(lo[0], dl[0] - 1);
-                                }
-                                if dh[0] < hi[0] {
-                                    row(dh[0] + 1, hi[0]);
-                                }
-                            }
-                            _ => row(lo[0], hi[0]),
-                        }
-                    }
-                }
-                self.scan_rows(p, &rows[..nr], &mut best, &mut found, filter);
-                done = Some((lo, hi));
-            }
+            self.scan_box(p, rho, &mut done, &mut |rows| self.scan_rows(p, rows, &mut best, &mut found, filter));
             // Everything closer than the best lies inside the box just scanned.
             if (found.is_some() && best <= rho * rho) || rho >= max_r {
                 break;
@@ -273,6 +239,89 @@ impl<T> PointGrid<T> {
             rho = (2.0 * rho).min(max_r);
         }
         found.map(|i| (i, best))
+    }
+
+    /// The cells (lo, hi inclusive) overlapping the box of half-width `rho` about
+    /// `p`, or `None` when the box lies outside the grid.
+    #[inline(always)]
+    pub(super) fn cell_box(&self, p: Vec3, rho: f32) -> Option<([i64; 3], [i64; 3])> {
+        let mut lo = [0i64; 3];
+        let mut hi = [0i64; 3];
+        for a in 0..3 {
+            let (l, h) = (self.coord(p[a] - rho, a), self.coord(p[a] + rho, a));
+            if h < 0 || l > self.dims[a] - 1 {
+                return None;
+            }
+            lo[a] = l.clamp(0, self.dims[a] - 1);
+            hi[a] = h.clamp(0, self.dims[a] - 1);
+        }
+        Some((lo, hi))
+    }
+
+    /// Hands `scan` the point ranges of the cells overlapping the box of half-width
+    /// `rho` about `p` that are not in `done` (the box scanned before, if any, which
+    /// this box contains), in batches of up to [`ROW_BATCH`] contiguous ranges, and
+    /// records the box in `done`. A box entirely outside the grid scans nothing.
+    #[inline(always)]
+    pub(super) fn scan_box(&self, p: Vec3, rho: f32, done: &mut Option<([i64; 3], [i64; 3])>, scan: &mut impl FnMut(&[(u32, u32)])) {
+        if let Some((lo, hi)) = self.cell_box(p, rho) {
+            self.scan_cells(lo, hi, *done, scan);
+            *done = Some((lo, hi));
+        }
+    }
+
+    /// Hands `scan` the point ranges of the cells `lo..=hi` outside `done`.
+    #[inline(always)]
+    pub(super) fn scan_cells(&self, lo: [i64; 3], hi: [i64; 3], done: Option<([i64; 3], [i64; 3])>, scan: &mut impl FnMut(&[(u32, u32)])) {
+        let mut rows = [(0u32, 0u32); ROW_BATCH];
+        let mut nr = 0;
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                // Cells x0..=x1 of the row, one contiguous range per tile.
+                let mut row = |x0: i64, x1: i64| {
+                    let mut x = x0;
+                    while x <= x1 {
+                        let end = x1.min((x / TILE + 1) * TILE - 1);
+                        if nr == ROW_BATCH {
+                            scan(&rows);
+                            nr = 0;
+                        }
+                        rows[nr] = self.row_range([x, y, z], end);
+                        nr += 1;
+                        x = end + 1;
+                    }
+                };
+                match done {
+                    Some((dl, dh)) if (dl[2]..=dh[2]).contains(&z) && (dl[1]..=dh[1]).contains(&y) => {
+                        if lo[0] < dl[0] {
+                            row(lo[0], dl[0] - 1);
+                        }
+                        if dh[0] < hi[0] {
+                            row(dh[0] + 1, hi[0]);
+                        }
+                    }
+                    _ => row(lo[0], hi[0]),
+                }
+            }
+        }
+        scan(&rows[..nr]);
+    }
+
+    /// Distance from `p` to the outside of the cell box `lo..=hi` (inclusive): every
+    /// point closer than this lies in the box. A side on the grid's border counts as
+    /// infinitely far, since every point is inside the grid.
+    #[inline(always)]
+    pub(super) fn inner_radius(&self, p: Vec3, lo: [i64; 3], hi: [i64; 3]) -> f32 {
+        let mut g = f32::INFINITY;
+        for a in 0..3 {
+            if lo[a] > 0 {
+                g = g.min(p[a] - (self.origin[a] + lo[a] as f32 * self.cell));
+            }
+            if hi[a] < self.dims[a] - 1 {
+                g = g.min(self.origin[a] + (hi[a] + 1) as f32 * self.cell - p[a]);
+            }
+        }
+        g.max(0.0)
     }
 
     /// Points of cells `from` … (`to_x`, from.y, from.z), all in one tile: one

@@ -29,7 +29,7 @@ pub fn encode_rgbe(c: Color) -> [u8; 4] {
         return [0; 4];
     }
     let (_, e) = frexp(m);
-    let scale = 256.0 / 2f32.powi(e);
+    let scale = 256.0 / exp2i(e);
     let q = |v: f32| (v.max(0.0) * scale).min(255.0) as u8;
     [q(c.x), q(c.y), q(c.z), (e + 128).clamp(0, 255) as u8]
 }
@@ -39,15 +39,27 @@ pub fn decode_rgbe(v: [u8; 4]) -> Color {
     if v[3] == 0 {
         return Color::ZERO;
     }
-    let f = 2f32.powi(v[3] as i32 - 128 - 8);
+    let f = exp2i(v[3] as i32 - 128 - 8);
     let d = |b: u8| if b == 0 { 0.0 } else { (b as f32 + 0.5) * f };
     Color::new(d(v[0]), d(v[1]), d(v[2]))
+}
+
+/// 2^e for e in [−252, 254] (clamped), exactly (rounded like any product where it
+/// falls below the normal range): two factors built from exponent bits. `powi` is
+/// a library call, which the compiler may also hoist out of a branch, and this sits
+/// in the radiance estimate's per-photon loop.
+#[inline]
+fn exp2i(e: i32) -> f32 {
+    let e = e.clamp(-252, 254);
+    let h = e / 2;
+    let bits = |x: i32| f32::from_bits(((x + 127) as u32) << 23);
+    bits(h) * bits(e - h)
 }
 
 /// Mantissa in [0.5, 1) and exponent with x = m·2^e.
 fn frexp(x: f32) -> (f32, i32) {
     let e = x.log2().floor() as i32 + 1;
-    let mut m = x / 2f32.powi(e);
+    let mut m = x / exp2i(e);
     let mut e = e;
     // Guard rounding of log2 near powers of two.
     if m >= 1.0 {
@@ -67,9 +79,14 @@ fn oct_encode(n: Vec3) -> Vec2 {
 }
 
 fn oct_decode(e: Vec2) -> Vec3 {
+    oct_unfold(e).normalize_or_zero()
+}
+
+/// The octahedron's point for `e` (|x| + |y| + |z| = 1): the direction, unnormalised.
+fn oct_unfold(e: Vec2) -> Vec3 {
     let z = 1.0 - e.x.abs() - e.y.abs();
     let (x, y) = if z >= 0.0 { (e.x, e.y) } else { ((1.0 - e.y.abs()) * e.x.signum(), (1.0 - e.x.abs()) * e.y.signum()) };
-    Vec3::new(x, y, z).normalize_or_zero()
+    Vec3::new(x, y, z)
 }
 
 fn quant(v: f32, bits: u32) -> u16 {
@@ -105,6 +122,12 @@ impl Photon {
     pub fn direction(&self) -> Vec3 {
         oct_decode(Vec2::new(dequant(self.dir & 0xFF, 8), dequant(self.dir >> 8, 8)))
     }
+    /// [`Photon::direction`] before normalisation (a positive multiple of it), for
+    /// tests that need only signs.
+    #[inline]
+    pub fn direction_unnormalised(&self) -> Vec3 {
+        oct_unfold(Vec2::new(dequant(self.dir & 0xFF, 8), dequant(self.dir >> 8, 8)))
+    }
     /// Unit surface normal on the side the photon arrived from.
     #[inline]
     pub fn normal(&self) -> Vec3 {
@@ -115,6 +138,18 @@ impl Photon {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exp2i_is_powi() {
+        for e in -126..=127 {
+            assert_eq!(exp2i(e).to_bits(), 2f32.powi(e).to_bits(), "2^{e}");
+        }
+        // Below the normal range: the exact subnormal, then zero; above: infinity.
+        for e in -149..-126 {
+            assert_eq!(exp2i(e).to_bits(), 1 << (e + 149), "2^{e}");
+        }
+        assert_eq!((exp2i(-150), exp2i(-400), exp2i(128), exp2i(400)), (0.0, 0.0, f32::INFINITY, f32::INFINITY));
+    }
     use crate::math::uniform_sphere;
 
     #[test]

@@ -75,10 +75,13 @@ impl RayPre {
     // inline function can be inlined (it was inlined when both shared one file).
     #[inline]
     pub(super) fn fast_planes(&mut self, cmax: [f32; 3]) {
+        // 2^100, exactly, as a constant: `powi` is a library call, once per axis of
+        // every ray.
+        const TWO_POW_100: f32 = (1u128 << 100) as f32;
         for (a, c) in cmax.iter().enumerate() {
             let m = self.o[a].abs().max(*c);
             // Also true for NaN (∞·0).
-            let parallel = (self.inv[a].abs() * m).partial_cmp(&2f32.powi(100)) != Some(std::cmp::Ordering::Less);
+            let parallel = (self.inv[a].abs() * m).partial_cmp(&TWO_POW_100) != Some(std::cmp::Ordering::Less);
             if parallel {
                 (self.near_c[a], self.near_b[a], self.far_c[a], self.far_b[a]) = (0.0, f32::INFINITY, 0.0, f32::NEG_INFINITY);
                 continue;

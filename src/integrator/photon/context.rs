@@ -12,8 +12,7 @@ use crate::math::{Color, Frame, cosine_hemisphere, hash_words, u32_to_unit};
 use crate::photon::PhotonMaps;
 use crate::photon::estimate::{self, EstimateParams, facing_normal, facing_shading_normal, with_heap};
 use crate::photon::irradiance::PrecomputedIrradiance;
-use crate::photon::kdtree::KdTree;
-use crate::photon::record::Photon;
+use crate::photon::nearest::PhotonGrid;
 use crate::sampler::Sampler;
 use crate::world::{Interaction, World};
 use glam::Vec3;
@@ -91,7 +90,7 @@ pub struct PhotonContext {
     /// The maps from pass 1.
     pub maps: PhotonMaps,
     /// Direct + indirect + caustic photons in one tree, for estimates at gather hits.
-    pub global: KdTree<Photon>,
+    pub global: PhotonGrid,
     /// Parameters of global estimates.
     pub est_global: EstimateParams,
     /// Parameters of caustic estimates.

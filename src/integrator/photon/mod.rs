@@ -19,7 +19,6 @@ use crate::material::TransportMode;
 use crate::math::Color;
 use crate::photon::estimate::{self, EstimateParams, Filter, with_heap};
 use crate::photon::irradiance;
-use crate::photon::kdtree::KdTree;
 use crate::photon::{self, PhotonPassSettings, build_maps};
 use crate::rr::RussianRoulette;
 use crate::sampler::Sampler;
@@ -292,7 +291,7 @@ impl Integrator for PhotonIntegrator {
         self.times.insert("caustic_max_radius".into(), caustic_radius as f64);
         let t1 = Instant::now();
         let t_global = Instant::now();
-        let global = KdTree::merged(&[&maps.direct, &maps.indirect, &maps.caustic]);
+        let global = photon::global_grid(&maps, p.k as usize);
         self.times.insert("kdtree_build_s".into(), maps.build_s + t_global.elapsed().as_secs_f64());
         let est_global = EstimateParams::new(p.k as usize, max_radius, filter, p.disc);
         let est_caustic = EstimateParams::new(p.caustic_k as usize, caustic_radius, filter, p.disc);

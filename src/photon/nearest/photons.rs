@@ -1,0 +1,347 @@
+//! The photon search of radiance estimates at final-gather hits (tens of millions
+//! per render): k nearest photons within a disc about the query's tangent plane, on
+//! the [`PointGrid`]'s cells.
+//!
+//! A query scans the cells of a box about the query point and keeps the photons
+//! that pass the estimate's filter (inside the search radius, within the disc's
+//! half-thickness of the tangent plane, normal agreeing with the query's) and lie
+//! closer than the box's inside radius, the distance from the query to the box's
+//! outside: every photon that close was read. When k are found the k nearest of
+//! them are the exact k nearest (as the kd-tree's search finds them, ties at the
+//! k-th distance aside); otherwise the box doubles and is scanned afresh, until it
+//! holds the whole search radius.
+//!
+//! Cells are about as wide as the typical k-th neighbour distance, so the first box
+//! (three cells a side) usually answers. The scan reads positions and normals
+//! stored apart, coordinate by coordinate, eight photons at a time with no branch
+//! but one per eight: a few contiguous ranges read in order, against the kd-tree's
+//! dependent loads down and back up a tree of a million photons.
+
+use super::PointGrid;
+use crate::photon::kdtree::KnnHeap;
+use crate::photon::record::Photon;
+use glam::Vec3;
+
+/// Photons tested per block of the scan.
+const BLOCK: usize = 8;
+
+/// Cell side, in median nearest-neighbour distances, for k-neighbour searches:
+/// points on a surface at density σ have a median nearest-neighbour distance
+/// √(ln 2 / (πσ)) and a k-th neighbour distance √(k / (πσ)).
+fn cell_spacings(k: usize) -> f32 {
+    (k.max(1) as f32 / std::f32::consts::LN_2).sqrt()
+}
+
+/// Photons in grid cells for k-nearest searches with the estimate's disc filter.
+#[derive(Clone, Debug, Default)]
+pub struct PhotonGrid {
+    /// The cells (their points' payload is the input index, unused by searches).
+    cells: PointGrid<()>,
+    /// Coordinates in grid order, then `BLOCK` far-away entries (a block may read
+    /// past its range's end; those lanes are masked).
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    /// Photon normals (decoded), grid order, padded likewise.
+    nx: Vec<f32>,
+    ny: Vec<f32>,
+    nz: Vec<f32>,
+    /// Photons in grid order.
+    photons: Vec<Photon>,
+}
+
+impl PhotonGrid {
+    /// Indexes `photons` at `positions` (same length) for searches of `k` photons.
+    /// Deterministic: the order within a cell is the input order.
+    pub fn build(positions: &[Vec3], photons: Vec<Photon>, k: usize) -> Self {
+        let n = positions.len().min(photons.len());
+        let mut cells = PointGrid::build_spaced(&positions[..n], vec![(); n], cell_spacings(k));
+        let order = std::mem::take(&mut cells.order);
+        let entries = std::mem::take(&mut cells.entries);
+        let photons: Vec<Photon> = order.iter().map(|&i| photons[i as usize]).collect();
+        let far = f32::INFINITY;
+        let pad = |v: Vec<f32>| v.into_iter().chain(std::iter::repeat_n(far, BLOCK)).collect::<Vec<f32>>();
+        let normals: Vec<Vec3> = photons.iter().map(|p| p.normal()).collect();
+        PhotonGrid {
+            x: pad(entries.iter().map(|e| e.pos.x).collect()),
+            y: pad(entries.iter().map(|e| e.pos.y).collect()),
+            z: pad(entries.iter().map(|e| e.pos.z).collect()),
+            nx: pad(normals.iter().map(|v| v.x).collect()),
+            ny: pad(normals.iter().map(|v| v.y).collect()),
+            nz: pad(normals.iter().map(|v| v.z).collect()),
+            photons,
+            cells,
+        }
+    }
+
+    /// Number of photons.
+    pub fn len(&self) -> usize {
+        self.photons.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.photons.is_empty()
+    }
+
+    /// Photon `i` (grid order).
+    #[inline]
+    pub fn photon(&self, i: usize) -> &Photon {
+        &self.photons[i]
+    }
+
+    /// Position of photon `i` (grid order).
+    #[inline]
+    pub fn position(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+
+    /// Bytes held (coordinates, normals, photons, cell starts).
+    pub fn memory_bytes(&self) -> usize {
+        self.x.len() * 24 + self.photons.len() * std::mem::size_of::<Photon>() + self.cells.start.len() * 4
+    }
+
+    /// The k nearest photons to `p` within distance² `max_r2` that lie within
+    /// `thick` of the plane through `p` normal to `n` and whose normal has a cosine of
+    /// at least `cos` with `n` — the kd-tree's search with the estimate's filter
+    /// ([`crate::photon::estimate::gather`]). Results in `heap.items` (distance²,
+    /// grid index; unordered); returns the k-th distance² when k were found, else
+    /// `max_r2`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn knn_disc(&self, p: Vec3, n: Vec3, thick: f32, cos: f32, k: usize, max_r2: f32, heap: &mut KnnHeap) -> f32 {
+        heap.items.clear();
+        if k == 0 || self.photons.is_empty() || max_r2.is_nan() || max_r2 <= 0.0 || !p.is_finite() {
+            return max_r2;
+        }
+        let max_r = max_r2.sqrt();
+        let mut rho = self.cells.cell.min(max_r);
+        loop {
+            heap.items.clear();
+            if let Some((lo, hi)) = self.cells.cell_box(p, rho) {
+                let inside = self.cells.inner_radius(p, lo, hi);
+                // Only photons inside the box's inside radius can settle the query.
+                let cap = max_r2.min(inside * inside);
+                let mut r2 = cap;
+                self.cells.scan_cells(lo, hi, None, &mut |rows| {
+                    // Short scattered ranges: fetch them all before reading any, so
+                    // their cache misses overlap.
+                    for &(a, b) in rows {
+                        self.prefetch(a as usize, b as usize);
+                    }
+                    for &(a, b) in rows {
+                        self.scan_range(p, n, thick, cos, a as usize, b as usize, k, &mut r2, heap);
+                    }
+                });
+                if heap.items.len() >= k {
+                    return heap.keep_nearest(k).min(cap);
+                }
+                if cap >= max_r2 {
+                    return max_r2;
+                }
+            }
+            if rho >= max_r {
+                return max_r2;
+            }
+            rho = (2.0 * rho).min(max_r);
+        }
+    }
+
+    /// Hints the cache to fetch the coordinates, normals and payload of photons
+    /// `a..b`: the first and last line of each array (a cell's range spans one or
+    /// two lines of each; the hardware prefetcher follows longer ones).
+    #[inline(always)]
+    fn prefetch(&self, a: usize, b: usize) {
+        #[cfg(target_arch = "x86_64")]
+        if a < b {
+            #[inline(always)]
+            fn line<U>(x: &U) {
+                // SAFETY: a prefetch never faults, and `x` is a valid reference.
+                unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((x as *const U).cast()) };
+            }
+            for v in [&self.x, &self.y, &self.z, &self.nx, &self.ny, &self.nz] {
+                line(&v[a]);
+                line(&v[b - 1]);
+            }
+            line(&self.photons[a]);
+            line(&self.photons[b - 1]);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (a, b);
+    }
+
+    /// The tests of photons `i..i + BLOCK`: a bit per photon that passes the filter
+    /// and lies closer than `r2`, and the distances². SSE on x86-64 (the same
+    /// operations in the same order as the scalar code, so the same bits).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn block(&self, i: usize, p: Vec3, n: Vec3, thick: f32, cos: f32, r2: f32) -> (u32, [f32; BLOCK]) {
+        let mut d2 = [0.0f32; BLOCK];
+        let mut mask = 0u32;
+        fn lanes(v: &[f32], i: usize) -> &[f32; BLOCK] {
+            v[i..i + BLOCK].try_into().expect("padded")
+        }
+        let (x, y, z) = (lanes(&self.x, i), lanes(&self.y, i), lanes(&self.z, i));
+        let (nx, ny, nz) = (lanes(&self.nx, i), lanes(&self.ny, i), lanes(&self.nz, i));
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::*;
+            // SAFETY: SSE is part of x86-64; every load and store is within a
+            // BLOCK-long array (h·4 + 4 ≤ BLOCK).
+            unsafe {
+                let (px, py, pz) = (_mm_set1_ps(p.x), _mm_set1_ps(p.y), _mm_set1_ps(p.z));
+                let (qx, qy, qz) = (_mm_set1_ps(n.x), _mm_set1_ps(n.y), _mm_set1_ps(n.z));
+                let (rv, tv, cv, sign) = (_mm_set1_ps(r2), _mm_set1_ps(thick), _mm_set1_ps(cos), _mm_set1_ps(-0.0));
+                for h in 0..BLOCK / 4 {
+                    let o = 4 * h;
+                    let dx = _mm_sub_ps(_mm_loadu_ps(x.as_ptr().add(o)), px);
+                    let dy = _mm_sub_ps(_mm_loadu_ps(y.as_ptr().add(o)), py);
+                    let dz = _mm_sub_ps(_mm_loadu_ps(z.as_ptr().add(o)), pz);
+                    let dd = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+                    let plane = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, qx), _mm_mul_ps(dy, qy)), _mm_mul_ps(dz, qz));
+                    let facing = _mm_add_ps(
+                        _mm_add_ps(_mm_mul_ps(_mm_loadu_ps(nx.as_ptr().add(o)), qx), _mm_mul_ps(_mm_loadu_ps(ny.as_ptr().add(o)), qy)),
+                        _mm_mul_ps(_mm_loadu_ps(nz.as_ptr().add(o)), qz),
+                    );
+                    let ok = _mm_and_ps(
+                        _mm_and_ps(_mm_cmplt_ps(dd, rv), _mm_cmple_ps(_mm_andnot_ps(sign, plane), tv)),
+                        _mm_cmpge_ps(facing, cv),
+                    );
+                    mask |= (_mm_movemask_ps(ok) as u32) << o;
+                    _mm_storeu_ps(d2.as_mut_ptr().add(o), dd);
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        for j in 0..BLOCK {
+            let (dx, dy, dz) = (x[j] - p.x, y[j] - p.y, z[j] - p.z);
+            d2[j] = dx * dx + dy * dy + dz * dz;
+            let plane = (dx * n.x + dy * n.y + dz * n.z).abs();
+            let facing = nx[j] * n.x + ny[j] * n.y + nz[j] * n.z;
+            mask |= (((d2[j] < r2) & (plane <= thick) & (facing >= cos)) as u32) << j;
+        }
+        (mask, d2)
+    }
+
+    /// Offers the photons `a..b` that pass the filter and lie closer than `r2` to
+    /// the heap: a block's tests computed for all its lanes (no branches), then the
+    /// passing lanes from a bit mask. The arithmetic is the kd-tree filter's, in the
+    /// same order, so the same photons pass.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn scan_range(&self, p: Vec3, n: Vec3, thick: f32, cos: f32, a: usize, b: usize, k: usize, r2: &mut f32, heap: &mut KnnHeap) {
+        let mut i = a;
+        while i < b {
+            let (mut mask, d2) = self.block(i, p, n, thick, cos, *r2);
+            if b - i < BLOCK {
+                mask &= (1u32 << (b - i)) - 1;
+            }
+            while mask != 0 {
+                let j = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                // r2 shrinks while the block is read.
+                if d2[j] < *r2 {
+                    heap.push(k, d2[j], (i + j) as u32, r2);
+                }
+            }
+            i += BLOCK;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Color, hash_words, u32_to_unit};
+    use crate::photon::kdtree::KdTree;
+
+    fn rnd(k: u64, j: u64) -> f32 {
+        u32_to_unit(hash_words(&[k, j, 91]) as u32)
+    }
+
+    /// Photons on the faces of a box (normal: the face's inward one), a ten times
+    /// denser patch, and some inside the box with random normals.
+    fn photons(n: usize) -> (Vec<Vec3>, Vec<Photon>) {
+        let (mut pos, mut ph) = (Vec::new(), Vec::new());
+        for i in 0..n as u64 {
+            let mut v = Vec3::new(rnd(i, 0), rnd(i, 1), rnd(i, 2)) * Vec3::new(3.0, 1.0, 0.5) - 0.25;
+            let mut m = Vec3::new(rnd(i, 5) - 0.5, rnd(i, 6) - 0.5, rnd(i, 7) - 0.5).normalize_or(Vec3::Z);
+            if i % 7 != 0 {
+                let a = (hash_words(&[i, 9]) % 3) as usize;
+                let high = rnd(i, 4) < 0.5;
+                v[a] = if high { [2.75, 0.75, 0.25][a] } else { -0.25 };
+                m = Vec3::ZERO;
+                m[a] = if high { -1.0 } else { 1.0 };
+                if i % 3 == 0 {
+                    let b = (a + 1) % 3;
+                    v[b] *= 0.1;
+                }
+            }
+            pos.push(v);
+            ph.push(Photon::new(Color::splat(1.0 + i as f32), m, m));
+        }
+        (pos, ph)
+    }
+
+    #[test]
+    fn knn_disc_equals_the_kd_tree_search() {
+        let (pos, ph) = photons(20000);
+        let tree = KdTree::build_with(&pos, ph);
+        // The grid over the tree's stored positions, so distances agree bit for bit.
+        let stored: Vec<Vec3> = (0..tree.len()).map(|i| tree.position(i)).collect();
+        let (mut hg, mut ht) = (KnnHeap::default(), KnnHeap::default());
+        for k in [1usize, 8, 50] {
+            let g = PhotonGrid::build(&stored, tree.points.clone(), k);
+            assert_eq!(g.len(), tree.len());
+            let mut full = 0;
+            for q in 0..1500u64 {
+                let mut p = Vec3::new(rnd(q, 10), rnd(q, 11), rnd(q, 12)) * Vec3::new(3.6, 1.6, 1.1) - 0.55;
+                if q % 2 == 0 {
+                    let a = (q / 2 % 3) as usize;
+                    p[a] = if q % 4 == 0 { [2.75, 0.75, 0.25][a] } else { -0.25 };
+                }
+                let n = Vec3::new(rnd(q, 13) - 0.5, rnd(q, 14) - 0.5, rnd(q, 15) - 0.5).normalize_or(Vec3::X);
+                for (max_r, thick, cos) in [(0.05f32, 0.01f32, 0.7f32), (0.3, 0.05, 0.7), (10.0, 10.0, -2.0), (10.0, 0.05, 0.0)] {
+                    let filter = |ph: &Photon, at: Vec3| (at - p).dot(n).abs() <= thick && ph.normal().dot(n) >= cos;
+                    let rg = g.knn_disc(p, n, thick, cos, k, max_r * max_r, &mut hg);
+                    let rt = tree.knn(p, k, max_r * max_r, &mut ht, &filter);
+                    assert_eq!(rg, rt, "query {q} k {k} r {max_r}");
+                    let mut dg: Vec<f32> = hg.items.iter().map(|e| e.0).collect();
+                    let mut dt: Vec<f32> = ht.items.iter().map(|e| e.0).collect();
+                    dg.sort_by(f32::total_cmp);
+                    dt.sort_by(f32::total_cmp);
+                    assert_eq!(dg, dt, "query {q} k {k} r {max_r}");
+                    for &(d2, i) in &hg.items {
+                        let (at, ph) = (g.position(i as usize), g.photon(i as usize));
+                        assert_eq!(d2, (at - p).length_squared());
+                        assert!(filter(ph, at));
+                    }
+                    full += (hg.items.len() == k) as usize;
+                }
+            }
+            assert!(full > 1500, "k {k}: {full}");
+        }
+    }
+
+    #[test]
+    fn knn_disc_degenerate_inputs() {
+        let mut h = KnnHeap::default();
+        let none = PhotonGrid::build(&[], Vec::new(), 10);
+        assert_eq!(none.knn_disc(Vec3::ZERO, Vec3::Z, 1.0, 0.0, 10, 4.0, &mut h), 4.0);
+        assert!(h.items.is_empty());
+        let ph = Photon::new(Color::ONE, Vec3::Z, Vec3::Z);
+        let g = PhotonGrid::build(&[Vec3::splat(2.0); 30], vec![ph; 30], 10);
+        let n = Vec3::Z;
+        assert_eq!(g.knn_disc(Vec3::new(2.0, 2.0, 3.0), n, 5.0, 0.5, 10, 100.0, &mut h), 1.0);
+        assert_eq!(h.items.len(), 10);
+        // The plane and normal tests.
+        assert_eq!(g.knn_disc(Vec3::new(2.0, 2.0, 3.0), n, 0.5, 0.5, 10, 100.0, &mut h), 100.0);
+        assert!(h.items.is_empty());
+        assert_eq!(g.knn_disc(Vec3::new(2.0, 2.0, 3.0), -n, 5.0, 0.5, 10, 100.0, &mut h), 100.0);
+        assert_eq!(g.knn_disc(Vec3::NAN, n, 5.0, 0.5, 10, 100.0, &mut h), 100.0);
+        // Far from every photon, a radius that cannot reach them, then one that can.
+        assert_eq!(g.knn_disc(Vec3::splat(-40.0), n, 1e3, 0.5, 3, 100.0, &mut h), 100.0);
+        assert!(h.items.is_empty());
+        assert_eq!(g.knn_disc(Vec3::splat(-40.0), n, 1e3, 0.5, 3, 1e5, &mut h), 3.0 * 42.0 * 42.0);
+        assert_eq!(g.knn_disc(Vec3::ONE, n, 5.0, 0.5, 0, 100.0, &mut h), 100.0);
+    }
+}
