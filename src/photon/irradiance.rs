@@ -6,7 +6,7 @@
 
 use super::estimate::{self, EstimateParams, with_heap};
 use super::kdtree::KdPoint;
-use super::nearest::{PhotonGrid, PointGrid};
+use super::nearest::{CELL_SPACINGS, DiscGrid, PhotonGrid};
 use crate::accel::TraversalStats;
 use crate::math::Color;
 use crate::world::World;
@@ -30,25 +30,22 @@ impl KdPoint for IrradiancePoint {
     }
 }
 
-/// Precomputed irradiance points in a grid built for nearest-point lookups
-/// ([`PointGrid`]; a lookup is one per final-gather ray). The grid holds what the
-/// lookup's filter reads, each point's normal beside its position (24 bytes a point);
-/// the irradiance, in grid order apart, is read for the point found only.
+/// Precomputed irradiance points in a grid built for nearest-point lookups with
+/// the lookup's filter ([`DiscGrid`]; a lookup is one per final-gather ray):
+/// positions and normals stored apart and tested eight at a time, the irradiance
+/// read for the point found only.
 #[derive(Clone, Debug, Default)]
 pub struct PrecomputedIrradiance {
-    /// Normals of the points.
-    grid: PointGrid<Vec3>,
-    /// Irradiance in grid order.
-    irradiance: Vec<Color>,
+    grid: DiscGrid<Color>,
 }
 
 impl PrecomputedIrradiance {
     /// Indexes `points` for lookups.
     pub fn new(points: Vec<IrradiancePoint>) -> Self {
         let pos: Vec<Vec3> = points.iter().map(|p| p.pos).collect();
-        let grid = PointGrid::build(&pos, points.iter().map(|p| p.normal).collect());
-        let irradiance = (0..grid.len()).map(|i| points[grid.source(i)].irradiance).collect();
-        PrecomputedIrradiance { grid, irradiance }
+        let normals: Vec<Vec3> = points.iter().map(|p| p.normal).collect();
+        let irradiance: Vec<Color> = points.iter().map(|p| p.irradiance).collect();
+        PrecomputedIrradiance { grid: DiscGrid::build(&pos, &normals, &irradiance, CELL_SPACINGS) }
     }
 
     /// Number of points.
@@ -63,7 +60,7 @@ impl PrecomputedIrradiance {
 
     /// Point `i` (lookup order).
     pub fn point(&self, i: usize) -> IrradiancePoint {
-        IrradiancePoint { pos: self.grid.position(i), normal: *self.grid.item(i), irradiance: self.irradiance[i] }
+        IrradiancePoint { pos: self.grid.position(i), normal: self.grid.normal(i), irradiance: *self.grid.item(i) }
     }
 
     /// Irradiance of the nearest precomputed point within `radius` whose normal
@@ -73,8 +70,7 @@ impl PrecomputedIrradiance {
     /// lamp over a roof) lends its irradiance through the wall.
     #[inline]
     pub fn lookup(&self, p: Vec3, n: Vec3, radius: f32, thickness: f32) -> Option<Color> {
-        let filter = |q: &Vec3, pos: Vec3| q.dot(n) >= 0.7 && (pos - p).dot(n).abs() <= thickness;
-        self.grid.nearest(p, radius * radius, &filter).map(|(i, _)| self.irradiance[i])
+        self.grid.nearest_disc(p, n, thickness, 0.7, radius * radius).map(|(i, _)| *self.grid.item(i))
     }
 }
 

@@ -20,14 +20,16 @@
 
 use glam::Vec3;
 
+mod disc;
 mod photons;
+pub use disc::DiscGrid;
 pub use photons::PhotonGrid;
 
 /// Points of a grid built over at most this many cells per point (plus a constant).
 const CELLS_PER_POINT: usize = 4;
 /// Cell side in median nearest-neighbour distances: about a dozen points per cell
 /// of a surface, so the first box (one cell wide) nearly always holds the answer.
-const CELL_SPACINGS: f32 = 4.0;
+pub(crate) const CELL_SPACINGS: f32 = 4.0;
 /// Points sampled to measure the spacing.
 const SPACING_SAMPLE: usize = 2048;
 
@@ -201,7 +203,7 @@ impl<T> PointGrid<T> {
     #[inline(always)]
     fn coord(&self, v: f32, axis: usize) -> i64 {
         // `as` saturates (NaN → 0); the callers clamp.
-        ((v - self.origin[axis]) * self.inv_cell).floor() as i64
+        floor_i64((v - self.origin[axis]) * self.inv_cell)
     }
 
     #[inline(always)]
@@ -227,11 +229,21 @@ impl<T> PointGrid<T> {
         }
         let max_r = max_r2.sqrt();
         let (mut best, mut found) = (max_r2, None);
-        let mut rho = (0.5 * self.cell).min(max_r);
+        let mut rho = self.first_rho(max_r);
         // Cell box already scanned (lo, hi inclusive), if any.
         let mut done: Option<([i64; 3], [i64; 3])> = None;
         loop {
-            self.scan_box(p, rho, &mut done, &mut |rows| self.scan_rows(p, rows, &mut best, &mut found, filter));
+            self.scan_box(p, rho, &mut done, &mut |rows| {
+                // The rows' first entries are cache misses at scattered places:
+                // request them all before reading any, so the misses overlap.
+                for &(a, b) in rows {
+                    if a < b {
+                        prefetch(&self.entries[a as usize]);
+                        prefetch(&self.entries[b as usize - 1]);
+                    }
+                }
+                self.scan_rows(p, rows, &mut best, &mut found, filter)
+            });
             // Everything closer than the best lies inside the box just scanned.
             if (found.is_some() && best <= rho * rho) || rho >= max_r {
                 break;
@@ -307,6 +319,12 @@ impl<T> PointGrid<T> {
         scan(&rows[..nr]);
     }
 
+    /// The first box's half-width in a [`PointGrid::nearest`] query.
+    #[inline]
+    fn first_rho(&self, max_r: f32) -> f32 {
+        (0.5 * self.cell).min(max_r)
+    }
+
     /// Distance from `p` to the outside of the cell box `lo..=hi` (inclusive): every
     /// point closer than this lies in the box. A side on the grid's border counts as
     /// infinitely far, since every point is inside the grid.
@@ -370,6 +388,26 @@ impl<T> PointGrid<T> {
         let m = d.len() / 2;
         *d.select_nth_unstable_by(m, f32::total_cmp).1
     }
+}
+
+/// `x.floor() as i64` without the library call `floor` is on x86-64 without
+/// SSE 4.1 (once per axis of every query): truncate, then step down below zero.
+#[inline(always)]
+fn floor_i64(x: f32) -> i64 {
+    let t = x as i64;
+    if (t as f32) > x { t.saturating_sub(1) } else { t }
+}
+
+/// Hints the cache to fetch the line holding `x`.
+#[inline(always)]
+fn prefetch<U>(x: &U) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch never faults, and `x` is a valid reference.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((x as *const U).cast())
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
 }
 
 /// Bounds of the finite positions (lo > hi when there are none).
@@ -454,6 +492,17 @@ mod tests {
             }
         }
         assert!(hits > 2000, "{hits}");
+    }
+
+    #[test]
+    fn floor_i64_is_floor() {
+        for x in [0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 2.999, -2.999, -3.0, 1e10, -1e10, 8388607.5, -8388607.5, f32::NAN, 1e30, -1e30] {
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
+        }
+        for i in 0..10000u64 {
+            let x = (u32_to_unit(hash_words(&[i, 5]) as u32) - 0.5) * 2000.0;
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
+        }
     }
 
     #[test]

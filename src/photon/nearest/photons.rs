@@ -1,6 +1,6 @@
 //! The photon search of radiance estimates at final-gather hits (tens of millions
 //! per render): k nearest photons within a disc about the query's tangent plane, on
-//! the [`PointGrid`]'s cells.
+//! a [`DiscGrid`] of photons.
 //!
 //! A query scans the cells of a box about the query point and keeps the photons
 //! that pass the estimate's filter (inside the search radius, within the disc's
@@ -12,18 +12,14 @@
 //! holds the whole search radius.
 //!
 //! Cells are about as wide as the typical k-th neighbour distance, so the first box
-//! (three cells a side) usually answers. The scan reads positions and normals
-//! stored apart, coordinate by coordinate, eight photons at a time with no branch
-//! but one per eight: a few contiguous ranges read in order, against the kd-tree's
-//! dependent loads down and back up a tree of a million photons.
+//! (three cells a side) usually answers: a few contiguous ranges read in order,
+//! against the kd-tree's dependent loads down and back up a tree of a million
+//! photons.
 
-use super::PointGrid;
+use super::disc::{BLOCK, DiscGrid};
 use crate::photon::kdtree::KnnHeap;
 use crate::photon::record::Photon;
 use glam::Vec3;
-
-/// Photons tested per block of the scan.
-const BLOCK: usize = 8;
 
 /// Cell side, in median nearest-neighbour distances, for k-neighbour searches:
 /// points on a surface at density σ have a median nearest-neighbour distance
@@ -33,72 +29,20 @@ fn cell_spacings(k: usize) -> f32 {
 }
 
 /// Photons in grid cells for k-nearest searches with the estimate's disc filter.
-#[derive(Clone, Debug, Default)]
-pub struct PhotonGrid {
-    /// The cells (their points' payload is the input index, unused by searches).
-    cells: PointGrid<()>,
-    /// Coordinates in grid order, then `BLOCK` far-away entries (a block may read
-    /// past its range's end; those lanes are masked).
-    x: Vec<f32>,
-    y: Vec<f32>,
-    z: Vec<f32>,
-    /// Photon normals (decoded), grid order, padded likewise.
-    nx: Vec<f32>,
-    ny: Vec<f32>,
-    nz: Vec<f32>,
-    /// Photons in grid order.
-    photons: Vec<Photon>,
-}
+pub type PhotonGrid = DiscGrid<Photon>;
 
-impl PhotonGrid {
-    /// Indexes `photons` at `positions` (same length) for searches of `k` photons.
-    /// Deterministic: the order within a cell is the input order.
-    pub fn build(positions: &[Vec3], photons: Vec<Photon>, k: usize) -> Self {
-        let n = positions.len().min(photons.len());
-        let mut cells = PointGrid::build_spaced(&positions[..n], vec![(); n], cell_spacings(k));
-        let order = std::mem::take(&mut cells.order);
-        let entries = std::mem::take(&mut cells.entries);
-        let photons: Vec<Photon> = order.iter().map(|&i| photons[i as usize]).collect();
-        let far = f32::INFINITY;
-        let pad = |v: Vec<f32>| v.into_iter().chain(std::iter::repeat_n(far, BLOCK)).collect::<Vec<f32>>();
+impl DiscGrid<Photon> {
+    /// Indexes `photons` at `positions` (same length) for searches of `k` photons,
+    /// with their (decoded) normals.
+    pub fn build_photons(positions: &[Vec3], photons: Vec<Photon>, k: usize) -> Self {
         let normals: Vec<Vec3> = photons.iter().map(|p| p.normal()).collect();
-        PhotonGrid {
-            x: pad(entries.iter().map(|e| e.pos.x).collect()),
-            y: pad(entries.iter().map(|e| e.pos.y).collect()),
-            z: pad(entries.iter().map(|e| e.pos.z).collect()),
-            nx: pad(normals.iter().map(|v| v.x).collect()),
-            ny: pad(normals.iter().map(|v| v.y).collect()),
-            nz: pad(normals.iter().map(|v| v.z).collect()),
-            photons,
-            cells,
-        }
-    }
-
-    /// Number of photons.
-    pub fn len(&self) -> usize {
-        self.photons.len()
-    }
-
-    /// True when empty.
-    pub fn is_empty(&self) -> bool {
-        self.photons.is_empty()
+        DiscGrid::build(positions, &normals, &photons, cell_spacings(k))
     }
 
     /// Photon `i` (grid order).
     #[inline]
     pub fn photon(&self, i: usize) -> &Photon {
-        &self.photons[i]
-    }
-
-    /// Position of photon `i` (grid order).
-    #[inline]
-    pub fn position(&self, i: usize) -> Vec3 {
-        Vec3::new(self.x[i], self.y[i], self.z[i])
-    }
-
-    /// Bytes held (coordinates, normals, photons, cell starts).
-    pub fn memory_bytes(&self) -> usize {
-        self.x.len() * 24 + self.photons.len() * std::mem::size_of::<Photon>() + self.cells.start.len() * 4
+        self.item(i)
     }
 
     /// The k nearest photons to `p` within distance² `max_r2` that lie within
@@ -110,11 +54,11 @@ impl PhotonGrid {
     #[allow(clippy::too_many_arguments)]
     pub fn knn_disc(&self, p: Vec3, n: Vec3, thick: f32, cos: f32, k: usize, max_r2: f32, heap: &mut KnnHeap) -> f32 {
         heap.items.clear();
-        if k == 0 || self.photons.is_empty() || max_r2.is_nan() || max_r2 <= 0.0 || !p.is_finite() {
+        if k == 0 || self.is_empty() || max_r2.is_nan() || max_r2 <= 0.0 || !p.is_finite() {
             return max_r2;
         }
         let max_r = max_r2.sqrt();
-        let mut rho = self.cells.cell.min(max_r);
+        let mut rho = self.first_rho(max_r);
         loop {
             heap.items.clear();
             if let Some((lo, hi)) = self.cells.cell_box(p, rho) {
@@ -126,7 +70,7 @@ impl PhotonGrid {
                     // Short scattered ranges: fetch them all before reading any, so
                     // their cache misses overlap.
                     for &(a, b) in rows {
-                        self.prefetch(a as usize, b as usize);
+                        self.prefetch_range(a as usize, b as usize);
                     }
                     for &(a, b) in rows {
                         self.scan_range(p, n, thick, cos, a as usize, b as usize, k, &mut r2, heap);
@@ -146,80 +90,10 @@ impl PhotonGrid {
         }
     }
 
-    /// Hints the cache to fetch the coordinates, normals and payload of photons
-    /// `a..b`: the first and last line of each array (a cell's range spans one or
-    /// two lines of each; the hardware prefetcher follows longer ones).
-    #[inline(always)]
-    fn prefetch(&self, a: usize, b: usize) {
-        #[cfg(target_arch = "x86_64")]
-        if a < b {
-            #[inline(always)]
-            fn line<U>(x: &U) {
-                // SAFETY: a prefetch never faults, and `x` is a valid reference.
-                unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((x as *const U).cast()) };
-            }
-            for v in [&self.x, &self.y, &self.z, &self.nx, &self.ny, &self.nz] {
-                line(&v[a]);
-                line(&v[b - 1]);
-            }
-            line(&self.photons[a]);
-            line(&self.photons[b - 1]);
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = (a, b);
-    }
-
-    /// The tests of photons `i..i + BLOCK`: a bit per photon that passes the filter
-    /// and lies closer than `r2`, and the distances². SSE on x86-64 (the same
-    /// operations in the same order as the scalar code, so the same bits).
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn block(&self, i: usize, p: Vec3, n: Vec3, thick: f32, cos: f32, r2: f32) -> (u32, [f32; BLOCK]) {
-        let mut d2 = [0.0f32; BLOCK];
-        let mut mask = 0u32;
-        fn lanes(v: &[f32], i: usize) -> &[f32; BLOCK] {
-            v[i..i + BLOCK].try_into().expect("padded")
-        }
-        let (x, y, z) = (lanes(&self.x, i), lanes(&self.y, i), lanes(&self.z, i));
-        let (nx, ny, nz) = (lanes(&self.nx, i), lanes(&self.ny, i), lanes(&self.nz, i));
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::*;
-            // SAFETY: SSE is part of x86-64; every load and store is within a
-            // BLOCK-long array (h·4 + 4 ≤ BLOCK).
-            unsafe {
-                let (px, py, pz) = (_mm_set1_ps(p.x), _mm_set1_ps(p.y), _mm_set1_ps(p.z));
-                let (qx, qy, qz) = (_mm_set1_ps(n.x), _mm_set1_ps(n.y), _mm_set1_ps(n.z));
-                let (rv, tv, cv, sign) = (_mm_set1_ps(r2), _mm_set1_ps(thick), _mm_set1_ps(cos), _mm_set1_ps(-0.0));
-                for h in 0..BLOCK / 4 {
-                    let o = 4 * h;
-                    let dx = _mm_sub_ps(_mm_loadu_ps(x.as_ptr().add(o)), px);
-                    let dy = _mm_sub_ps(_mm_loadu_ps(y.as_ptr().add(o)), py);
-                    let dz = _mm_sub_ps(_mm_loadu_ps(z.as_ptr().add(o)), pz);
-                    let dd = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
-                    let plane = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, qx), _mm_mul_ps(dy, qy)), _mm_mul_ps(dz, qz));
-                    let facing = _mm_add_ps(
-                        _mm_add_ps(_mm_mul_ps(_mm_loadu_ps(nx.as_ptr().add(o)), qx), _mm_mul_ps(_mm_loadu_ps(ny.as_ptr().add(o)), qy)),
-                        _mm_mul_ps(_mm_loadu_ps(nz.as_ptr().add(o)), qz),
-                    );
-                    let ok = _mm_and_ps(
-                        _mm_and_ps(_mm_cmplt_ps(dd, rv), _mm_cmple_ps(_mm_andnot_ps(sign, plane), tv)),
-                        _mm_cmpge_ps(facing, cv),
-                    );
-                    mask |= (_mm_movemask_ps(ok) as u32) << o;
-                    _mm_storeu_ps(d2.as_mut_ptr().add(o), dd);
-                }
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        for j in 0..BLOCK {
-            let (dx, dy, dz) = (x[j] - p.x, y[j] - p.y, z[j] - p.z);
-            d2[j] = dx * dx + dy * dy + dz * dz;
-            let plane = (dx * n.x + dy * n.y + dz * n.z).abs();
-            let facing = nx[j] * n.x + ny[j] * n.y + nz[j] * n.z;
-            mask |= (((d2[j] < r2) & (plane <= thick) & (facing >= cos)) as u32) << j;
-        }
-        (mask, d2)
+    /// The first box's half-width of a search within `max_r`.
+    #[inline]
+    fn first_rho(&self, max_r: f32) -> f32 {
+        self.cells.cell.min(max_r)
     }
 
     /// Offers the photons `a..b` that pass the filter and lie closer than `r2` to
@@ -290,7 +164,7 @@ mod tests {
         let stored: Vec<Vec3> = (0..tree.len()).map(|i| tree.position(i)).collect();
         let (mut hg, mut ht) = (KnnHeap::default(), KnnHeap::default());
         for k in [1usize, 8, 50] {
-            let g = PhotonGrid::build(&stored, tree.points.clone(), k);
+            let g = PhotonGrid::build_photons(&stored, tree.points.clone(), k);
             assert_eq!(g.len(), tree.len());
             let mut full = 0;
             for q in 0..1500u64 {
@@ -325,11 +199,11 @@ mod tests {
     #[test]
     fn knn_disc_degenerate_inputs() {
         let mut h = KnnHeap::default();
-        let none = PhotonGrid::build(&[], Vec::new(), 10);
+        let none = PhotonGrid::build_photons(&[], Vec::new(), 10);
         assert_eq!(none.knn_disc(Vec3::ZERO, Vec3::Z, 1.0, 0.0, 10, 4.0, &mut h), 4.0);
         assert!(h.items.is_empty());
         let ph = Photon::new(Color::ONE, Vec3::Z, Vec3::Z);
-        let g = PhotonGrid::build(&[Vec3::splat(2.0); 30], vec![ph; 30], 10);
+        let g = PhotonGrid::build_photons(&[Vec3::splat(2.0); 30], vec![ph; 30], 10);
         let n = Vec3::Z;
         assert_eq!(g.knn_disc(Vec3::new(2.0, 2.0, 3.0), n, 5.0, 0.5, 10, 100.0, &mut h), 1.0);
         assert_eq!(h.items.len(), 10);

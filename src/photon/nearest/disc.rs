@@ -1,0 +1,266 @@
+//! A uniform grid of points with normals and a payload, searched with the
+//! estimates' disc filter: points within a half-thickness of the query's tangent
+//! plane whose normals agree with the query's. The photon maps' k-nearest search at
+//! final-gather hits ([`super::PhotonGrid`]) and the nearest precomputed-irradiance
+//! point ([`DiscGrid::nearest_disc`]) run on it, tens of millions of queries per
+//! render.
+//!
+//! The cells are the [`PointGrid`]'s; positions and normals are stored apart,
+//! coordinate by coordinate, and tested eight points at a time with no branch but
+//! one per eight (SSE on x86-64, the same arithmetic as the scalar filters, so the
+//! same points pass).
+
+use super::PointGrid;
+use glam::Vec3;
+
+/// Points tested per block of a scan.
+pub(super) const BLOCK: usize = 8;
+
+/// Points with normals and payloads in grid cells, for searches with a disc filter.
+#[derive(Clone, Debug, Default)]
+pub struct DiscGrid<P> {
+    /// The cells (their points' own payload is empty; searches read the arrays below).
+    pub(super) cells: PointGrid<()>,
+    /// Coordinates in grid order, then `BLOCK` far-away entries (a block may read
+    /// past its range's end; those lanes are masked).
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    /// Normals, grid order, padded likewise.
+    nx: Vec<f32>,
+    ny: Vec<f32>,
+    nz: Vec<f32>,
+    /// Payload in grid order.
+    items: Vec<P>,
+}
+
+impl<P: Copy> DiscGrid<P> {
+    /// Indexes `items` at `positions` with `normals` (same lengths; the shortest
+    /// counts), cells `spacings` × the points' median nearest-neighbour distance.
+    /// Deterministic: the order within a cell is the input order.
+    pub fn build(positions: &[Vec3], normals: &[Vec3], items: &[P], spacings: f32) -> Self {
+        let n = positions.len().min(normals.len()).min(items.len());
+        let mut cells = PointGrid::build_spaced(&positions[..n], vec![(); n], spacings);
+        let order = std::mem::take(&mut cells.order);
+        let entries = std::mem::take(&mut cells.entries);
+        let pad = |v: Vec<f32>| v.into_iter().chain(std::iter::repeat_n(f32::INFINITY, BLOCK)).collect::<Vec<f32>>();
+        let normal = |a: usize| pad(order.iter().map(|&i| normals[i as usize][a]).collect());
+        DiscGrid {
+            x: pad(entries.iter().map(|e| e.pos.x).collect()),
+            y: pad(entries.iter().map(|e| e.pos.y).collect()),
+            z: pad(entries.iter().map(|e| e.pos.z).collect()),
+            nx: normal(0),
+            ny: normal(1),
+            nz: normal(2),
+            items: order.iter().map(|&i| items[i as usize]).collect(),
+            cells,
+        }
+    }
+}
+
+impl<P> DiscGrid<P> {
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+
+    /// Payload of point `i` (grid order).
+    #[inline]
+    pub fn item(&self, i: usize) -> &P {
+        &self.items[i]
+    }
+
+    /// Position of point `i` (grid order).
+    #[inline]
+    pub fn position(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+
+    /// Normal of point `i` (grid order).
+    #[inline]
+    pub fn normal(&self, i: usize) -> Vec3 {
+        Vec3::new(self.nx[i], self.ny[i], self.nz[i])
+    }
+
+    /// Bytes held (coordinates, normals, payload, cell starts).
+    pub fn memory_bytes(&self) -> usize {
+        self.x.len() * 24 + self.items.len() * std::mem::size_of::<P>() + self.cells.start.len() * 4
+    }
+
+    /// The nearest point to `p` closer than distance² `max_r2` that lies within
+    /// `thick` of the plane through `p` normal to `n` and whose normal has a cosine
+    /// of at least `cos` with `n`: its index (grid order) and distance². Exact, and
+    /// the same point as [`PointGrid::nearest`] with that filter (ties: the first in
+    /// grid order): the box of half-width ρ about `p` is scanned, ρ = half a cell
+    /// first, doubling (reading only cells not yet read) until the best point lies
+    /// within ρ or ρ reaches the search radius.
+    pub fn nearest_disc(&self, p: Vec3, n: Vec3, thick: f32, cos: f32, max_r2: f32) -> Option<(usize, f32)> {
+        if self.items.is_empty() || max_r2.is_nan() || max_r2 <= 0.0 || !p.is_finite() {
+            return None;
+        }
+        let max_r = max_r2.sqrt();
+        let (mut best, mut found) = (max_r2, None);
+        let mut rho = self.cells.first_rho(max_r);
+        let mut done = None;
+        loop {
+            self.cells.scan_box(p, rho, &mut done, &mut |rows| {
+                for &(a, b) in rows {
+                    self.prefetch_range(a as usize, b as usize);
+                }
+                for &(a, b) in rows {
+                    let (a, b) = (a as usize, b as usize);
+                    let mut i = a;
+                    while i < b {
+                        let (mut mask, d2) = self.block(i, p, n, thick, cos, best);
+                        if b - i < BLOCK {
+                            mask &= (1u32 << (b - i)) - 1;
+                        }
+                        while mask != 0 {
+                            let j = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            if d2[j] < best {
+                                best = d2[j];
+                                found = Some(i + j);
+                            }
+                        }
+                        i += BLOCK;
+                    }
+                }
+            });
+            // Everything closer than the best lies inside the box just scanned.
+            if (found.is_some() && best <= rho * rho) || rho >= max_r {
+                break;
+            }
+            rho = (2.0 * rho).min(max_r);
+        }
+        found.map(|i| (i, best))
+    }
+
+    /// Hints the cache to fetch the coordinates, normals and payload of points
+    /// `a..b`: the first and last line of each array (a cell's range spans one or
+    /// two lines of each; the hardware prefetcher follows longer ones).
+    #[inline(always)]
+    pub(super) fn prefetch_range(&self, a: usize, b: usize) {
+        if a < b {
+            for v in [&self.x, &self.y, &self.z, &self.nx, &self.ny, &self.nz] {
+                super::prefetch(&v[a]);
+                super::prefetch(&v[b - 1]);
+            }
+            super::prefetch(&self.items[a]);
+            super::prefetch(&self.items[b - 1]);
+        }
+    }
+
+    /// The tests of points `i..i + BLOCK`: a bit per point that passes the filter
+    /// and lies closer than `r2`, and the distances². SSE on x86-64 (the same
+    /// operations in the same order as the scalar code, so the same bits).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn block(&self, i: usize, p: Vec3, n: Vec3, thick: f32, cos: f32, r2: f32) -> (u32, [f32; BLOCK]) {
+        let mut d2 = [0.0f32; BLOCK];
+        let mut mask = 0u32;
+        fn lanes(v: &[f32], i: usize) -> &[f32; BLOCK] {
+            v[i..i + BLOCK].try_into().expect("padded")
+        }
+        let (x, y, z) = (lanes(&self.x, i), lanes(&self.y, i), lanes(&self.z, i));
+        let (nx, ny, nz) = (lanes(&self.nx, i), lanes(&self.ny, i), lanes(&self.nz, i));
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::*;
+            // SAFETY: SSE is part of x86-64; every load and store is within a
+            // BLOCK-long array (h·4 + 4 ≤ BLOCK).
+            unsafe {
+                let (px, py, pz) = (_mm_set1_ps(p.x), _mm_set1_ps(p.y), _mm_set1_ps(p.z));
+                let (qx, qy, qz) = (_mm_set1_ps(n.x), _mm_set1_ps(n.y), _mm_set1_ps(n.z));
+                let (rv, tv, cv, sign) = (_mm_set1_ps(r2), _mm_set1_ps(thick), _mm_set1_ps(cos), _mm_set1_ps(-0.0));
+                for h in 0..BLOCK / 4 {
+                    let o = 4 * h;
+                    let dx = _mm_sub_ps(_mm_loadu_ps(x.as_ptr().add(o)), px);
+                    let dy = _mm_sub_ps(_mm_loadu_ps(y.as_ptr().add(o)), py);
+                    let dz = _mm_sub_ps(_mm_loadu_ps(z.as_ptr().add(o)), pz);
+                    let dd = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+                    let plane = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, qx), _mm_mul_ps(dy, qy)), _mm_mul_ps(dz, qz));
+                    let facing = _mm_add_ps(
+                        _mm_add_ps(_mm_mul_ps(_mm_loadu_ps(nx.as_ptr().add(o)), qx), _mm_mul_ps(_mm_loadu_ps(ny.as_ptr().add(o)), qy)),
+                        _mm_mul_ps(_mm_loadu_ps(nz.as_ptr().add(o)), qz),
+                    );
+                    let ok = _mm_and_ps(
+                        _mm_and_ps(_mm_cmplt_ps(dd, rv), _mm_cmple_ps(_mm_andnot_ps(sign, plane), tv)),
+                        _mm_cmpge_ps(facing, cv),
+                    );
+                    mask |= (_mm_movemask_ps(ok) as u32) << o;
+                    _mm_storeu_ps(d2.as_mut_ptr().add(o), dd);
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        for j in 0..BLOCK {
+            let (dx, dy, dz) = (x[j] - p.x, y[j] - p.y, z[j] - p.z);
+            d2[j] = dx * dx + dy * dy + dz * dz;
+            let plane = (dx * n.x + dy * n.y + dz * n.z).abs();
+            let facing = nx[j] * n.x + ny[j] * n.y + nz[j] * n.z;
+            mask |= (((d2[j] < r2) & (plane <= thick) & (facing >= cos)) as u32) << j;
+        }
+        (mask, d2)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{hash_words, u32_to_unit};
+
+    fn rnd(k: u64, j: u64) -> f32 {
+        u32_to_unit(hash_words(&[k, j, 93]) as u32)
+    }
+
+    #[test]
+    fn nearest_disc_equals_the_point_grid() {
+        // Points on the faces of a box with the face's inward normal, some inside
+        // with random normals.
+        let (mut pos, mut nrm) = (Vec::new(), Vec::new());
+        for i in 0..6000u64 {
+            let mut v = Vec3::new(rnd(i, 0), rnd(i, 1), rnd(i, 2)) * Vec3::new(3.0, 1.0, 0.5) - 0.25;
+            let mut m = Vec3::new(rnd(i, 5) - 0.5, rnd(i, 6) - 0.5, rnd(i, 7) - 0.5).normalize_or(Vec3::Z);
+            if i % 5 != 0 {
+                let a = (hash_words(&[i, 9]) % 3) as usize;
+                let high = rnd(i, 4) < 0.5;
+                v[a] = if high { [2.75, 0.75, 0.25][a] } else { -0.25 };
+                m = Vec3::ZERO;
+                m[a] = if high { -1.0 } else { 1.0 };
+            }
+            pos.push(v);
+            nrm.push(m);
+        }
+        let ids: Vec<u32> = (0..pos.len() as u32).collect();
+        let disc = DiscGrid::build(&pos, &nrm, &ids, 4.0);
+        let items: Vec<(Vec3, u32)> = nrm.iter().copied().zip(ids.iter().copied()).collect();
+        let grid = PointGrid::build_spaced(&pos, items, 4.0);
+        let mut hits = 0;
+        for q in 0..3000u64 {
+            let mut p = Vec3::new(rnd(q, 10), rnd(q, 11), rnd(q, 12)) * Vec3::new(3.6, 1.6, 1.1) - 0.55;
+            if q % 2 == 0 {
+                let a = (q / 2 % 3) as usize;
+                p[a] = if q % 4 == 0 { [2.75, 0.75, 0.25][a] } else { -0.25 };
+            }
+            let n = Vec3::new(rnd(q, 13) - 0.5, rnd(q, 14) - 0.5, rnd(q, 15) - 0.5).normalize_or(Vec3::Y);
+            for (max_r, thick) in [(0.05f32, 0.01f32), (0.3, 0.05), (10.0, 10.0)] {
+                let filter = |it: &(Vec3, u32), at: Vec3| it.0.dot(n) >= 0.7 && (at - p).dot(n).abs() <= thick;
+                let want = grid.nearest(p, max_r * max_r, &filter).map(|(i, d2)| (grid.item(i).1, d2));
+                let got = disc.nearest_disc(p, n, thick, 0.7, max_r * max_r).map(|(i, d2)| (*disc.item(i), d2));
+                assert_eq!(got, want, "query {q} r {max_r}");
+                hits += got.is_some() as usize;
+            }
+        }
+        assert!(hits > 2000, "{hits}");
+        // Degenerate: empty, non-finite query.
+        let none: DiscGrid<u32> = DiscGrid::build(&[], &[], &[], 4.0);
+        assert!(none.is_empty() && none.nearest_disc(Vec3::ZERO, Vec3::Z, 1.0, 0.0, 1.0).is_none());
+        assert!(disc.nearest_disc(Vec3::NAN, Vec3::Z, 1.0, 0.0, 1.0).is_none());
+    }
+}
