@@ -111,8 +111,13 @@ pub trait PhotonSearch {
     /// whose normals agree with `n`. Results in `heap.items`; returns r² (the k-th
     /// distance², or `max_radius`² when fewer were found).
     fn gather(&self, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32;
-    /// Photon `i` of a search's results.
-    fn photon(&self, i: usize) -> &Photon;
+    /// Power of photon `i` of a search's results.
+    fn power(&self, i: usize) -> Color;
+    /// Unit direction of photon `i` (towards where it came from).
+    fn direction(&self, i: usize) -> Vec3;
+    /// A positive multiple of [`PhotonSearch::direction`], for tests of its side
+    /// only (may skip the normalisation).
+    fn direction_side(&self, i: usize) -> Vec3;
     /// Position of photon `i` of a search's results.
     fn photon_position(&self, i: usize) -> Vec3;
     /// True when the map holds no photon.
@@ -130,8 +135,16 @@ impl PhotonSearch for KdTree<Photon> {
         self.knn(p, prm.k, prm.max_radius * prm.max_radius, heap, &filter)
     }
     #[inline]
-    fn photon(&self, i: usize) -> &Photon {
-        &self.points[i]
+    fn power(&self, i: usize) -> Color {
+        self.points[i].power()
+    }
+    #[inline]
+    fn direction(&self, i: usize) -> Vec3 {
+        self.points[i].direction()
+    }
+    #[inline]
+    fn direction_side(&self, i: usize) -> Vec3 {
+        self.points[i].direction_unnormalised()
     }
     #[inline]
     fn photon_position(&self, i: usize) -> Vec3 {
@@ -148,8 +161,16 @@ impl PhotonSearch for PhotonGrid {
         self.knn_disc(p, n, prm.disc * prm.max_radius, prm.normal_cos, prm.k, prm.max_radius * prm.max_radius, heap)
     }
     #[inline]
-    fn photon(&self, i: usize) -> &Photon {
-        PhotonGrid::photon(self, i)
+    fn power(&self, i: usize) -> Color {
+        self.item(i).power
+    }
+    #[inline]
+    fn direction(&self, i: usize) -> Vec3 {
+        self.item(i).dir
+    }
+    #[inline]
+    fn direction_side(&self, i: usize) -> Vec3 {
+        self.item(i).dir
     }
     #[inline]
     fn photon_position(&self, i: usize) -> Vec3 {
@@ -189,7 +210,7 @@ pub fn radiance<M: PhotonSearch + ?Sized>(
         // only the signs of their directions, so no normalisation either).
         Bsdf::Lambertian(m) => {
             let test = LambertianReflects::towards(&it.sp, wo);
-            radiance_sum(map, it, wo, prm, heap, |ph| if test.from(ph.direction_unnormalised()) { ph.power() } else { Color::ZERO })
+            radiance_sum(map, it, wo, prm, heap, |m, i| if test.from(m.direction_side(i)) { m.power(i) } else { Color::ZERO })
                 * (m.albedo * std::f32::consts::FRAC_1_PI)
         }
         _ => radiance_with(map, it, wo, prm, heap, |wi| bsdf.eval(&it.sp, wo, wi)),
@@ -208,7 +229,7 @@ pub fn radiance_with<M: PhotonSearch + ?Sized>(
     heap: &mut KnnHeap,
     f: impl Fn(Vec3) -> Color,
 ) -> Color {
-    radiance_sum(map, it, wo, prm, heap, |ph| f(ph.direction()) * ph.power())
+    radiance_sum(map, it, wo, prm, heap, |m, i| f(m.direction(i)) * m.power(i))
 }
 
 /// The estimate Σ w·`term(photon)` / (norm·π r²) over the photons gathered at `it`
@@ -220,7 +241,7 @@ fn radiance_sum<M: PhotonSearch + ?Sized>(
     wo: Vec3,
     prm: &EstimateParams,
     heap: &mut KnnHeap,
-    term: impl Fn(&Photon) -> Color,
+    term: impl Fn(&M, usize) -> Color,
 ) -> Color {
     if map.is_empty() {
         return Color::ZERO;
@@ -232,7 +253,7 @@ fn radiance_sum<M: PhotonSearch + ?Sized>(
     }
     let mut sum = Color::ZERO;
     for &(d2, i) in &heap.items {
-        sum += term(map.photon(i as usize)) * prm.filter.weight(d2 / r2);
+        sum += term(map, i as usize) * prm.filter.weight(d2 / r2);
     }
     sum / (prm.filter_norm * std::f32::consts::PI * r2)
 }
@@ -254,7 +275,7 @@ fn irradiance_r2<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &Esti
     }
     let mut sum = Color::ZERO;
     for &(d2, i) in &heap.items {
-        sum += map.photon(i as usize).power() * prm.filter.weight(d2 / r2);
+        sum += map.power(i as usize) * prm.filter.weight(d2 / r2);
     }
     (sum / (prm.filter_norm * std::f32::consts::PI * r2), r2)
 }

@@ -86,7 +86,7 @@ pub fn precompute(world: &World, global: &PhotonGrid, stride: usize, prm: &Estim
         .into_par_iter()
         .step_by(stride.max(1))
         .map(|i| {
-            let (n, pos) = (global.photon(i).normal(), global.position(i));
+            let (n, pos) = (global.normal(i), global.position(i));
             let mut stats = TraversalStats::default();
             let e = with_heap(|h| estimate::irradiance_covered(world, global, pos, n, prm, h, &mut stats));
             IrradiancePoint { pos, normal: n, irradiance: e }

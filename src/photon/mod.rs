@@ -143,7 +143,7 @@ pub fn global_grid(maps: &PhotonMaps, k: usize) -> nearest::PhotonGrid {
         pos.par_extend((0..t.len()).into_par_iter().map(|i| t.position(i)));
         photons.extend_from_slice(&t.points);
     }
-    nearest::PhotonGrid::build_photons(&pos, photons, k)
+    nearest::PhotonGrid::build_photons(&pos, &photons, k)
 }
 
 /// The radius that holds `k` photons where `stored` photons spread evenly over

@@ -23,7 +23,7 @@ use glam::Vec3;
 mod disc;
 mod photons;
 pub use disc::DiscGrid;
-pub use photons::PhotonGrid;
+pub use photons::{DecodedPhoton, PhotonGrid};
 
 /// Points of a grid built over at most this many cells per point (plus a constant).
 const CELLS_PER_POINT: usize = 4;

@@ -17,6 +17,7 @@
 //! photons.
 
 use super::disc::{BLOCK, DiscGrid};
+use crate::math::Color;
 use crate::photon::kdtree::KnnHeap;
 use crate::photon::record::Photon;
 use glam::Vec3;
@@ -28,21 +29,26 @@ fn cell_spacings(k: usize) -> f32 {
     (k.max(1) as f32 / std::f32::consts::LN_2).sqrt()
 }
 
-/// Photons in grid cells for k-nearest searches with the estimate's disc filter.
-pub type PhotonGrid = DiscGrid<Photon>;
+/// A stored photon as the estimates read it, decoded once when the grid is built
+/// (each photon serves thousands of estimates at final-gather hits).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DecodedPhoton {
+    /// Power ([`Photon::power`]).
+    pub power: Color,
+    /// Unit direction towards where it came from ([`Photon::direction`]).
+    pub dir: Vec3,
+}
 
-impl DiscGrid<Photon> {
+/// Photons in grid cells for k-nearest searches with the estimate's disc filter.
+pub type PhotonGrid = DiscGrid<DecodedPhoton>;
+
+impl DiscGrid<DecodedPhoton> {
     /// Indexes `photons` at `positions` (same length) for searches of `k` photons,
     /// with their (decoded) normals.
-    pub fn build_photons(positions: &[Vec3], photons: Vec<Photon>, k: usize) -> Self {
+    pub fn build_photons(positions: &[Vec3], photons: &[Photon], k: usize) -> Self {
         let normals: Vec<Vec3> = photons.iter().map(|p| p.normal()).collect();
-        DiscGrid::build(positions, &normals, &photons, cell_spacings(k))
-    }
-
-    /// Photon `i` (grid order).
-    #[inline]
-    pub fn photon(&self, i: usize) -> &Photon {
-        self.item(i)
+        let decoded: Vec<DecodedPhoton> = photons.iter().map(|p| DecodedPhoton { power: p.power(), dir: p.direction() }).collect();
+        DiscGrid::build(positions, &normals, &decoded, cell_spacings(k))
     }
 
     /// The k nearest photons to `p` within distance² `max_r2` that lie within
@@ -125,7 +131,7 @@ impl DiscGrid<Photon> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::{Color, hash_words, u32_to_unit};
+    use crate::math::{hash_words, u32_to_unit};
     use crate::photon::kdtree::KdTree;
 
     fn rnd(k: u64, j: u64) -> f32 {
@@ -164,7 +170,7 @@ mod tests {
         let stored: Vec<Vec3> = (0..tree.len()).map(|i| tree.position(i)).collect();
         let (mut hg, mut ht) = (KnnHeap::default(), KnnHeap::default());
         for k in [1usize, 8, 50] {
-            let g = PhotonGrid::build_photons(&stored, tree.points.clone(), k);
+            let g = PhotonGrid::build_photons(&stored, &tree.points, k);
             assert_eq!(g.len(), tree.len());
             let mut full = 0;
             for q in 0..1500u64 {
@@ -185,9 +191,9 @@ mod tests {
                     dt.sort_by(f32::total_cmp);
                     assert_eq!(dg, dt, "query {q} k {k} r {max_r}");
                     for &(d2, i) in &hg.items {
-                        let (at, ph) = (g.position(i as usize), g.photon(i as usize));
+                        let at = g.position(i as usize);
                         assert_eq!(d2, (at - p).length_squared());
-                        assert!(filter(ph, at));
+                        assert!((at - p).dot(n).abs() <= thick && g.normal(i as usize).dot(n) >= cos);
                     }
                     full += (hg.items.len() == k) as usize;
                 }
@@ -199,11 +205,11 @@ mod tests {
     #[test]
     fn knn_disc_degenerate_inputs() {
         let mut h = KnnHeap::default();
-        let none = PhotonGrid::build_photons(&[], Vec::new(), 10);
+        let none = PhotonGrid::build_photons(&[], &[], 10);
         assert_eq!(none.knn_disc(Vec3::ZERO, Vec3::Z, 1.0, 0.0, 10, 4.0, &mut h), 4.0);
         assert!(h.items.is_empty());
         let ph = Photon::new(Color::ONE, Vec3::Z, Vec3::Z);
-        let g = PhotonGrid::build_photons(&[Vec3::splat(2.0); 30], vec![ph; 30], 10);
+        let g = PhotonGrid::build_photons(&[Vec3::splat(2.0); 30], &[ph; 30], 10);
         let n = Vec3::Z;
         assert_eq!(g.knn_disc(Vec3::new(2.0, 2.0, 3.0), n, 5.0, 0.5, 10, 100.0, &mut h), 1.0);
         assert_eq!(h.items.len(), 10);
