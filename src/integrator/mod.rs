@@ -6,6 +6,7 @@ pub mod ppm;
 pub mod progressive;
 pub mod render;
 pub mod sppm;
+pub mod sppm_grid;
 
 use crate::accel::TraversalStats;
 use crate::film::Film;

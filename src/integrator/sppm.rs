@@ -36,18 +36,19 @@
 
 use super::photon::DirectParams;
 use super::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, save_checkpoint};
+pub use super::sppm_grid::{GridPhoton, PhotonGrid};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
 use crate::integrator::render::RenderStats;
 use crate::material::{ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
-use crate::photon::{MapKind, RawPhoton, trace_path_in};
+use crate::photon::{MapKind, trace_path_in};
 use crate::rr::{RrContext, RussianRoulette, roulette};
 use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
 use crate::world::World;
 use anyhow::{Result, bail};
-use glam::{DVec3, IVec3, Vec3};
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -351,7 +352,8 @@ impl SppmIntegrator {
             crate::progress::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "sppm");
         // Buffers reused from pass to pass (no allocation per pass in the hot loops).
         let mut vps: Vec<Option<VisiblePoint>> = vec![None; npix];
-        let mut flat: Vec<GridPhoton> = Vec::new();
+        // Each photon chunk's kept photons, in path order.
+        let mut traced: Vec<Vec<GridPhoton>> = Vec::new();
         let mut grid = PhotonGrid::default();
         let mut found: Vec<Option<(u64, DVec3)>> = Vec::new();
         while budget.more(pass) {
@@ -399,40 +401,43 @@ impl SppmIntegrator {
             stats.nonfinite_samples += bad;
             t_camera += t0.elapsed().as_secs_f64();
 
-            // 2. Photon pass: chunks in parallel, merged in path order.
+            // 2. Photon pass: chunks in parallel, each into its own reused buffer.
             let t1 = Instant::now();
             let stream = photon_stream(pass);
-            let chunks = m.div_ceil(PHOTON_CHUNK);
-            let traced: Vec<(Vec<GridPhoton>, TraversalStats)> = (0..chunks)
-                .into_par_iter()
+            let chunks = m.div_ceil(PHOTON_CHUNK) as usize;
+            traced.resize_with(chunks, Vec::new);
+            let st = traced
+                .par_iter_mut()
+                .enumerate()
                 .map_init(
                     || (emit_sampler.clone_box(), Vec::new()),
-                    |(s, raw), c| {
+                    |(s, raw), (c, out)| {
                         raw.clear();
                         let mut st = TraversalStats::default();
+                        let c = c as u64;
                         for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
                             trace_path_in(world, s.as_mut(), stream, j, self.rr.as_ref(), self.cfg.depth_limit(), &mut st, raw);
                         }
-                        let out = raw.iter().filter(|p| keep_first || p.kind != MapKind::Direct).map(GridPhoton::from).collect();
-                        (out, st)
+                        out.clear();
+                        out.extend(raw.iter().filter(|p| keep_first || p.kind != MapKind::Direct).map(GridPhoton::from));
+                        st
                     },
                 )
-                .collect();
-            flat.clear();
-            for (v, st) in &traced {
-                photon_rays.add(st);
-                flat.extend_from_slice(v);
-            }
-            drop(traced);
-            kept_total += flat.len() as u64;
+                .reduce(TraversalStats::default, |mut a, b| {
+                    a.add(&b);
+                    a
+                });
+            photon_rays.add(&st);
+            let kept: usize = traced.iter().map(Vec::len).sum();
+            kept_total += kept as u64;
             t_photon += t1.elapsed().as_secs_f64();
 
             // 3. Gather into the visible points and 4. update.
             let t2 = Instant::now();
             let r_max = vps.iter().zip(&pixels).filter(|(v, _)| v.is_some()).map(|(_, p)| p.r).fold(0.0f64, f64::max);
-            if r_max > 0.0 && !flat.is_empty() {
+            if r_max > 0.0 && kept > 0 {
                 // A little over r_max, so rounding never makes a disc span four cells.
-                grid.build(&flat, (r_max * (1.0 + 1e-4)) as f32);
+                grid.build(&traced, (r_max * (1.0 + 1e-4)) as f32);
                 let cap_factor = self.set.p.sppm_density_cap as f64;
                 if pass == 0 && cap_factor > 0.0 {
                     // First pass: gather, then cap each pixel's count at cap_factor × the
@@ -553,99 +558,6 @@ pub fn area_probe(world: &World, vp: &VisiblePoint, r: f32, u: [f32; 2], stats: 
     }
 }
 
-/// A kept photon, as the gather reads it (48 bytes, stored sorted by grid cell).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct GridPhoton {
-    /// Position.
-    pub pos: Vec3,
-    /// Incoming direction (towards the photon's origin).
-    pub dir: Vec3,
-    /// Surface normal on the arrival side.
-    pub normal: Vec3,
-    /// Power (not yet divided by the number of emitted paths).
-    pub power: Color,
-}
-
-impl From<&RawPhoton> for GridPhoton {
-    fn from(p: &RawPhoton) -> Self {
-        GridPhoton { pos: p.pos, dir: p.dir, normal: p.normal, power: p.power }
-    }
-}
-
-/// Photons bucketed by a spatial hash of their grid cell: a counting sort into one
-/// flat array (bucket b holds `photons[start[b]..start[b + 1]]`), stable, so each
-/// bucket keeps photon order. Its buffers are reused when it is rebuilt.
-#[derive(Default)]
-pub struct PhotonGrid {
-    inv_cell: f32,
-    mask: usize,
-    start: Vec<u32>,
-    keys: Vec<u32>,
-    photons: Vec<GridPhoton>,
-}
-
-#[inline]
-fn cell_hash(c: IVec3, mask: usize) -> usize {
-    let h = (c.x as u32).wrapping_mul(73_856_093) ^ (c.y as u32).wrapping_mul(19_349_663) ^ (c.z as u32).wrapping_mul(83_492_791);
-    (crate::math::mix64(h as u64) as usize) & mask
-}
-
-impl PhotonGrid {
-    /// Rebuilds the grid over `photons` with cubic cells of edge `cell`.
-    pub fn build(&mut self, photons: &[GridPhoton], cell: f32) {
-        self.inv_cell = 1.0 / cell.max(1e-30);
-        let buckets = photons.len().next_power_of_two().max(64);
-        self.mask = buckets - 1;
-        let (inv_cell, mask) = (self.inv_cell, self.mask);
-        photons.par_iter().map(|p| cell_hash((p.pos * inv_cell).floor().as_ivec3(), mask) as u32).collect_into_vec(&mut self.keys);
-        self.start.clear();
-        self.start.resize(buckets + 1, 0);
-        for &k in &self.keys {
-            self.start[k as usize + 1] += 1;
-        }
-        for i in 0..buckets {
-            self.start[i + 1] += self.start[i];
-        }
-        self.photons.clear();
-        self.photons.resize(photons.len(), GridPhoton::default());
-        // Scatter, using start[k] as the fill cursor of bucket k, then shift back.
-        for (p, &k) in photons.iter().zip(&self.keys) {
-            let slot = &mut self.start[k as usize];
-            self.photons[*slot as usize] = *p;
-            *slot += 1;
-        }
-        for i in (1..=buckets).rev() {
-            self.start[i] = self.start[i - 1];
-        }
-        self.start[0] = 0;
-    }
-
-    /// Calls `f` with every photon in the cells the sphere (p, r) touches (a superset
-    /// of the photons within r; each at most once), bucket by bucket in photon order.
-    pub fn for_each_candidate(&self, p: Vec3, r: f32, mut f: impl FnMut(&GridPhoton)) {
-        if self.photons.is_empty() {
-            return;
-        }
-        let lo = ((p - Vec3::splat(r)) * self.inv_cell).floor().as_ivec3();
-        let hi = ((p + Vec3::splat(r)) * self.inv_cell).floor().as_ivec3();
-        let mut seen = [usize::MAX; 27];
-        let mut n = 0;
-        for z in lo.z..=hi.z.min(lo.z + 2) {
-            for y in lo.y..=hi.y.min(lo.y + 2) {
-                for x in lo.x..=hi.x.min(lo.x + 2) {
-                    let b = cell_hash(IVec3::new(x, y, z), self.mask);
-                    if seen[..n].contains(&b) {
-                        continue;
-                    }
-                    seen[n] = b;
-                    n += 1;
-                    self.photons[self.start[b] as usize..self.start[b + 1] as usize].iter().for_each(&mut f);
-                }
-            }
-        }
-    }
-}
-
 /// Photons within `r` of the visible point that arrived on its side: their count and
 /// Σ Φ f(wo, wi) (before the visible point's throughput). The diffuse part of f is
 /// the same for every photon in the shading hemisphere of wo, so it multiplies the
@@ -658,10 +570,9 @@ pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u
     let cos_o = vp.wo.dot(vp.sp.ns());
     let ns = if cos_o >= 0.0 { vp.sp.ns() } else { -vp.sp.ns() };
     let lit = cos_o != 0.0 && vp.wo.dot(vp.sp.ng) != 0.0;
-    let r2 = r * r;
     let (mut m, mut diffuse, mut lobe) = (0u64, DVec3::ZERO, DVec3::ZERO);
-    grid.for_each_candidate(vp.p, r, |ph| {
-        if (ph.pos - vp.p).length_squared() > r2 || ph.normal.dot(vp.n) < NORMAL_COS || ph.dir.dot(vp.n) <= 0.0 {
+    grid.for_each_within(vp.p, r, |ph| {
+        if ph.normal.dot(vp.n) < NORMAL_COS || ph.dir.dot(vp.n) <= 0.0 {
             return;
         }
         m += 1;

@@ -29,37 +29,6 @@ fn update_keeps_a_uniform_density_estimate_and_shrinks_the_radius() {
     assert_eq!((before.r, before.n), (px.r, px.n));
 }
 
-#[test]
-fn grid_visits_every_photon_within_the_radius_once() {
-    let mut photons = Vec::new();
-    let mut h = 7u64;
-    let mut u = || {
-        h = crate::math::mix64(h);
-        (h >> 40) as f32 / (1u64 << 24) as f32
-    };
-    for i in 0..5000 {
-        let pos = Vec3::new(u() * 4.0 - 2.0, u() * 4.0 - 2.0, u() * 0.5);
-        // The power carries the photon's index, to find it again in the sorted grid.
-        photons.push(GridPhoton { pos, power: Color::splat(i as f32), dir: Vec3::Z, normal: Vec3::Z });
-    }
-    let r = 0.3f32;
-    let mut grid = PhotonGrid::default();
-    grid.for_each_candidate(Vec3::ZERO, r, |_| panic!("an empty grid has no photons"));
-    grid.build(&photons, 2.0 * r);
-    for q in 0..200 {
-        let p = Vec3::new(u() * 4.0 - 2.0, u() * 4.0 - 2.0, u() * 0.5);
-        let rq = r * (0.2 + 0.8 * (q % 5) as f32 / 4.0);
-        let mut seen = vec![0u32; photons.len()];
-        grid.for_each_candidate(p, rq, |ph| seen[ph.power.x as usize] += 1);
-        for (i, ph) in photons.iter().enumerate() {
-            assert!(seen[i] <= 1, "photon {i} visited twice");
-            if (ph.pos - p).length() <= rq {
-                assert_eq!(seen[i], 1, "photon {i} within the radius was missed");
-            }
-        }
-    }
-}
-
 /// A single-sided square (the floor of zero thickness, normal +y) lit from above by a
 /// point light; the camera looks at it from below.
 fn thin_floor_seen_from_below() -> World {
