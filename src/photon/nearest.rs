@@ -425,8 +425,8 @@ mod tests {
     }
 
     /// Points in a box, most on its faces (with the face's inward normal), some
-    /// inside with random normals.
-    fn points(n: usize) -> (Vec<Vec3>, Vec<(Vec3, u32)>) {
+    /// inside with random normals (shared with the tests of `disc`).
+    pub(super) fn points(n: usize) -> (Vec<Vec3>, Vec<(Vec3, u32)>) {
         let mut pos = Vec::new();
         let mut items = Vec::new();
         for i in 0..n as u64 {
@@ -445,6 +445,17 @@ mod tests {
         (pos, items)
     }
 
+    /// Query `q` of the grid tests: on the faces, inside and outside the box of
+    /// [`points`], with a random unit normal (shared with `disc` and `photons`).
+    pub(super) fn query(q: u64) -> (Vec3, Vec3) {
+        let mut p = Vec3::new(rnd(q, 10), rnd(q, 11), rnd(q, 12)) * Vec3::new(3.6, 1.6, 1.1) - 0.55;
+        if q.is_multiple_of(2) {
+            let a = (q / 2 % 3) as usize;
+            p[a] = if q.is_multiple_of(4) { [2.75, 0.75, 0.25][a] } else { -0.25 };
+        }
+        (p, Vec3::new(rnd(q, 13) - 0.5, rnd(q, 14) - 0.5, rnd(q, 15) - 0.5).normalize_or(Vec3::Y))
+    }
+
     #[test]
     fn nearest_equals_brute_force_with_filter() {
         let (pos, items) = points(4000);
@@ -460,12 +471,7 @@ mod tests {
         let mut hits = 0;
         for q in 0..3000u64 {
             // Queries on the faces, inside and outside the box.
-            let mut p = Vec3::new(rnd(q, 10), rnd(q, 11), rnd(q, 12)) * Vec3::new(3.6, 1.6, 1.1) - 0.55;
-            if q % 2 == 0 {
-                let a = (q / 2 % 3) as usize;
-                p[a] = if q % 4 == 0 { [2.75, 0.75, 0.25][a] } else { -0.25 };
-            }
-            let n = Vec3::new(rnd(q, 13) - 0.5, rnd(q, 14) - 0.5, rnd(q, 15) - 0.5).normalize_or_zero();
+            let (p, n) = query(q);
             for (max_r, thick) in [(0.05f32, 0.01f32), (0.3, 0.05), (10.0, 10.0)] {
                 let filter = |it: &(Vec3, u32), at: Vec3| it.0.dot(n) >= 0.7 && (at - p).dot(n).abs() <= thick;
                 let got = g.nearest(p, max_r * max_r, &filter);

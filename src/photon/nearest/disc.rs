@@ -213,42 +213,19 @@ impl<P> DiscGrid<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::{hash_words, u32_to_unit};
-
-    fn rnd(k: u64, j: u64) -> f32 {
-        u32_to_unit(hash_words(&[k, j, 93]) as u32)
-    }
 
     #[test]
     fn nearest_disc_equals_the_point_grid() {
         // Points on the faces of a box with the face's inward normal, some inside
         // with random normals.
-        let (mut pos, mut nrm) = (Vec::new(), Vec::new());
-        for i in 0..6000u64 {
-            let mut v = Vec3::new(rnd(i, 0), rnd(i, 1), rnd(i, 2)) * Vec3::new(3.0, 1.0, 0.5) - 0.25;
-            let mut m = Vec3::new(rnd(i, 5) - 0.5, rnd(i, 6) - 0.5, rnd(i, 7) - 0.5).normalize_or(Vec3::Z);
-            if i % 5 != 0 {
-                let a = (hash_words(&[i, 9]) % 3) as usize;
-                let high = rnd(i, 4) < 0.5;
-                v[a] = if high { [2.75, 0.75, 0.25][a] } else { -0.25 };
-                m = Vec3::ZERO;
-                m[a] = if high { -1.0 } else { 1.0 };
-            }
-            pos.push(v);
-            nrm.push(m);
-        }
+        let (pos, items) = super::super::tests::points(6000);
+        let nrm: Vec<Vec3> = items.iter().map(|it| it.0).collect();
         let ids: Vec<u32> = (0..pos.len() as u32).collect();
         let disc = DiscGrid::build(&pos, &nrm, &ids, 4.0);
-        let items: Vec<(Vec3, u32)> = nrm.iter().copied().zip(ids.iter().copied()).collect();
         let grid = PointGrid::build_spaced(&pos, items, 4.0);
         let mut hits = 0;
         for q in 0..3000u64 {
-            let mut p = Vec3::new(rnd(q, 10), rnd(q, 11), rnd(q, 12)) * Vec3::new(3.6, 1.6, 1.1) - 0.55;
-            if q % 2 == 0 {
-                let a = (q / 2 % 3) as usize;
-                p[a] = if q % 4 == 0 { [2.75, 0.75, 0.25][a] } else { -0.25 };
-            }
-            let n = Vec3::new(rnd(q, 13) - 0.5, rnd(q, 14) - 0.5, rnd(q, 15) - 0.5).normalize_or(Vec3::Y);
+            let (p, n) = super::super::tests::query(q);
             for (max_r, thick) in [(0.05f32, 0.01f32), (0.3, 0.05), (10.0, 10.0)] {
                 let filter = |it: &(Vec3, u32), at: Vec3| it.0.dot(n) >= 0.7 && (at - p).dot(n).abs() <= thick;
                 let want = grid.nearest(p, max_r * max_r, &filter).map(|(i, d2)| (grid.item(i).1, d2));

@@ -174,12 +174,7 @@ mod tests {
             assert_eq!(g.len(), tree.len());
             let mut full = 0;
             for q in 0..1500u64 {
-                let mut p = Vec3::new(rnd(q, 10), rnd(q, 11), rnd(q, 12)) * Vec3::new(3.6, 1.6, 1.1) - 0.55;
-                if q % 2 == 0 {
-                    let a = (q / 2 % 3) as usize;
-                    p[a] = if q % 4 == 0 { [2.75, 0.75, 0.25][a] } else { -0.25 };
-                }
-                let n = Vec3::new(rnd(q, 13) - 0.5, rnd(q, 14) - 0.5, rnd(q, 15) - 0.5).normalize_or(Vec3::X);
+                let (p, n) = super::super::tests::query(q);
                 for (max_r, thick, cos) in [(0.05f32, 0.01f32, 0.7f32), (0.3, 0.05, 0.7), (10.0, 10.0, -2.0), (10.0, 0.05, 0.0)] {
                     let filter = |ph: &Photon, at: Vec3| (at - p).dot(n).abs() <= thick && ph.normal().dot(n) >= cos;
                     let rg = g.knn_disc(p, n, thick, cos, k, max_r * max_r, &mut hg);
