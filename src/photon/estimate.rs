@@ -181,13 +181,6 @@ impl PhotonSearch for PhotonGrid {
     }
 }
 
-/// Gathers the photons an estimate at `p` would use (for callers that need them
-/// more than once); returns r².
-#[inline]
-pub fn gather<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> f32 {
-    map.gather(p, n, prm, heap)
-}
-
 /// The shading normal turned to the viewer's side (the side `wo` leaves on).
 #[inline]
 pub fn facing_shading_normal(it: &Interaction, wo: Vec3) -> Vec3 {
@@ -247,7 +240,7 @@ fn radiance_sum<M: PhotonSearch + ?Sized>(
         return Color::ZERO;
     }
     let n = facing_normal(it, wo);
-    let r2 = gather(map, it.p, n, prm, heap);
+    let r2 = map.gather(it.p, n, prm, heap);
     if heap.items.is_empty() || r2 <= 0.0 {
         return Color::ZERO;
     }
@@ -269,7 +262,7 @@ fn irradiance_r2<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &Esti
     if map.is_empty() {
         return (Color::ZERO, 0.0);
     }
-    let r2 = gather(map, p, n, prm, heap);
+    let r2 = map.gather(p, n, prm, heap);
     if heap.items.is_empty() || r2 <= 0.0 {
         return (Color::ZERO, 0.0);
     }

@@ -427,17 +427,27 @@ mod tests {
     /// Points in a box, most on its faces (with the face's inward normal), some
     /// inside with random normals (shared with the tests of `disc`).
     pub(super) fn points(n: usize) -> (Vec<Vec3>, Vec<(Vec3, u32)>) {
+        points_with(n, 5, false)
+    }
+
+    /// [`points`] with every `inside`-th point inside the box and, when `dense`, every
+    /// third face point squeezed into a patch ten times denser (a caustic's density
+    /// contrast; shared with the tests of `photons`).
+    pub(super) fn points_with(n: usize, inside: u64, dense: bool) -> (Vec<Vec3>, Vec<(Vec3, u32)>) {
         let mut pos = Vec::new();
         let mut items = Vec::new();
         for i in 0..n as u64 {
             let mut v = Vec3::new(rnd(i, 0), rnd(i, 1), rnd(i, 2)) * Vec3::new(3.0, 1.0, 0.5) - 0.25;
-            let mut nrm = Vec3::new(rnd(i, 5) - 0.5, rnd(i, 6) - 0.5, rnd(i, 7) - 0.5).normalize_or_zero();
-            if i % 5 != 0 {
+            let mut nrm = Vec3::new(rnd(i, 5) - 0.5, rnd(i, 6) - 0.5, rnd(i, 7) - 0.5).normalize_or(Vec3::Z);
+            if !i.is_multiple_of(inside) {
                 let a = (hash_words(&[i, 9]) % 3) as usize;
                 let high = rnd(i, 4) < 0.5;
                 v[a] = if high { [2.75, 0.75, 0.25][a] } else { -0.25 };
                 nrm = Vec3::ZERO;
                 nrm[a] = if high { -1.0 } else { 1.0 };
+                if dense && i.is_multiple_of(3) {
+                    v[(a + 1) % 3] *= 0.1;
+                }
             }
             pos.push(v);
             items.push((nrm, i as u32));

@@ -54,7 +54,7 @@ impl DiscGrid<DecodedPhoton> {
     /// The k nearest photons to `p` within distance² `max_r2` that lie within
     /// `thick` of the plane through `p` normal to `n` and whose normal has a cosine of
     /// at least `cos` with `n` — the kd-tree's search with the estimate's filter
-    /// ([`crate::photon::estimate::gather`]). Results in `heap.items` (distance²,
+    /// ([`crate::photon::estimate::PhotonSearch::gather`]). Results in `heap.items` (distance²,
     /// grid index; unordered); returns the k-th distance² when k were found, else
     /// `max_r2`.
     #[allow(clippy::too_many_arguments)]
@@ -131,34 +131,13 @@ impl DiscGrid<DecodedPhoton> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::{hash_words, u32_to_unit};
     use crate::photon::kdtree::KdTree;
-
-    fn rnd(k: u64, j: u64) -> f32 {
-        u32_to_unit(hash_words(&[k, j, 91]) as u32)
-    }
 
     /// Photons on the faces of a box (normal: the face's inward one), a ten times
     /// denser patch, and some inside the box with random normals.
     fn photons(n: usize) -> (Vec<Vec3>, Vec<Photon>) {
-        let (mut pos, mut ph) = (Vec::new(), Vec::new());
-        for i in 0..n as u64 {
-            let mut v = Vec3::new(rnd(i, 0), rnd(i, 1), rnd(i, 2)) * Vec3::new(3.0, 1.0, 0.5) - 0.25;
-            let mut m = Vec3::new(rnd(i, 5) - 0.5, rnd(i, 6) - 0.5, rnd(i, 7) - 0.5).normalize_or(Vec3::Z);
-            if i % 7 != 0 {
-                let a = (hash_words(&[i, 9]) % 3) as usize;
-                let high = rnd(i, 4) < 0.5;
-                v[a] = if high { [2.75, 0.75, 0.25][a] } else { -0.25 };
-                m = Vec3::ZERO;
-                m[a] = if high { -1.0 } else { 1.0 };
-                if i % 3 == 0 {
-                    let b = (a + 1) % 3;
-                    v[b] *= 0.1;
-                }
-            }
-            pos.push(v);
-            ph.push(Photon::new(Color::splat(1.0 + i as f32), m, m));
-        }
+        let (pos, items) = super::super::tests::points_with(n, 7, true);
+        let ph = items.iter().map(|&(m, i)| Photon::new(Color::splat(1.0 + i as f32), m, m)).collect();
         (pos, ph)
     }
 
