@@ -82,8 +82,25 @@ pub fn concentric_disc(u: [f32; 2]) -> [f32; 2] {
     if ox == 0.0 && oy == 0.0 {
         return [0.0, 0.0];
     }
-    let (r, theta) = if ox.abs() > oy.abs() { (ox, (PI / 4.0) * (oy / ox)) } else { (oy, PI / 2.0 - (PI / 4.0) * (ox / oy)) };
-    [r * theta.cos(), r * theta.sin()]
+    // θ = a or π/2 − a with a in [−π/4, π/4]: sin and cos of a by polynomials
+    // (a libm `sincosf` was 3 % of a `precomputed` render).
+    if ox.abs() > oy.abs() {
+        let (s, c) = sin_cos_quarter((PI / 4.0) * (oy / ox));
+        [ox * c, ox * s]
+    } else {
+        let (s, c) = sin_cos_quarter((PI / 4.0) * (ox / oy));
+        [oy * s, oy * c]
+    }
+}
+
+/// sin a and cos a for a in [−π/4, π/4]: Taylor polynomials to a⁹ and a¹⁰, whose
+/// truncation error (below 3e-10 there) is far under f32 rounding.
+#[inline(always)]
+pub fn sin_cos_quarter(a: f32) -> (f32, f32) {
+    let a2 = a * a;
+    let s = a * (1.0 + a2 * (-1.0 / 6.0 + a2 * (1.0 / 120.0 + a2 * (-1.0 / 5040.0 + a2 * (1.0 / 362_880.0)))));
+    let c = 1.0 + a2 * (-0.5 + a2 * (1.0 / 24.0 + a2 * (-1.0 / 720.0 + a2 * (1.0 / 40_320.0 - a2 * (1.0 / 3_628_800.0)))));
+    (s, c)
 }
 
 /// Uniform direction on the unit sphere.
@@ -208,6 +225,30 @@ mod tests {
             assert!(f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5);
             let v = Vec3::new(0.2, 0.4, -0.7);
             assert!((f.to_world(f.to_local(v)) - v).length() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn quarter_sin_cos_is_accurate_and_the_disc_map_unchanged() {
+        for i in 0..=20_000 {
+            let a = (i as f64 / 20_000.0 - 0.5) * std::f64::consts::FRAC_PI_2;
+            let (s, c) = sin_cos_quarter(a as f32);
+            let (ws, wc) = (a as f32 as f64).sin_cos();
+            assert!((s as f64 - ws).abs() <= 1.2e-7 && (c as f64 - wc).abs() <= 1.2e-7, "{a}: {s} {c}");
+        }
+        // The polynomial map against the textbook one (θ from libm), over the square.
+        for i in 0..200 {
+            for j in 0..200 {
+                let u = [(i as f32 + 0.37) / 200.0, (j as f32 + 0.71) / 200.0];
+                let (ox, oy) = (2.0 * u[0] as f64 - 1.0, 2.0 * u[1] as f64 - 1.0);
+                let (r, t) = if ox.abs() > oy.abs() {
+                    (ox, std::f64::consts::FRAC_PI_4 * (oy / ox))
+                } else {
+                    (oy, std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (ox / oy))
+                };
+                let d = concentric_disc(u);
+                assert!((d[0] as f64 - r * t.cos()).abs() < 3e-7 && (d[1] as f64 - r * t.sin()).abs() < 3e-7, "{u:?}");
+            }
         }
     }
 

@@ -82,6 +82,23 @@ fn white_furnace_energy() {
     }
 }
 
+/// The photon-map views (`photons-direct`, `photons-indirect`) search the kd-trees
+/// the integrator builds only for them: in the white furnace the direct map shows
+/// one bounce, a·L_e, and the indirect map the rest, L_e a² / (1 − a).
+#[test]
+fn photon_map_views_in_the_furnace() {
+    let (a, le) = (0.5f32, 1.0f32);
+    let cfg = RenderConfig { resolution: Some([12, 12]), ..photon_cfg("final_gather", 100_000) }.with("gather_samples", 8);
+    let aovs = ["photons-direct".to_string(), "photons-indirect".to_string()];
+    let out = photonlab::pipeline::render_scene_with_aovs(furnace(a, le, 24), &cfg, true, &aovs).unwrap();
+    for (name, want) in [("photons-direct", a * le), ("photons-indirect", le * a * a / (1.0 - a))] {
+        let film = &out.aovs.iter().find(|(n, _)| n == name).expect("the view is rendered").1;
+        for c in film.mean().to_array() {
+            assert!((c - want).abs() < 0.05 * want, "{name}: mean {c}, expected {want}");
+        }
+    }
+}
+
 /// Convergence on `cornell`: the low-frequency error of direct visualisation falls as
 /// photons grow, and final gathering / the irradiance cache have far less of it than
 /// direct visualisation at the same photon count.

@@ -82,14 +82,42 @@ pub struct PhotonPassSettings {
     pub max_emitted: u64,
     /// Maximum bounces per photon path (u32::MAX = unbounded).
     pub max_depth: u32,
+    /// kd-trees to build for the direct and indirect maps (the caustic map's is
+    /// always built): only direct visualisation and the `photons-*` outputs search
+    /// them; gathers search the global grid built from [`PhotonMaps::global`].
+    pub trees: MapTrees,
+}
+
+/// Which of the direct and indirect maps get a kd-tree.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MapTrees {
+    /// The direct map's.
+    pub direct: bool,
+    /// The indirect map's.
+    pub indirect: bool,
+}
+
+/// The stored direct photons, then the indirect ones, each in path order, normalised
+/// by the paths emitted for them: what the global grid ([`global_grid`]) and, on
+/// request, the two maps' kd-trees are built from.
+#[derive(Clone, Debug, Default)]
+pub struct GlobalPhotons {
+    /// Positions.
+    pub pos: Vec<Vec3>,
+    /// Photons.
+    pub photons: Vec<Photon>,
+    /// How many are direct (the rest are indirect).
+    pub direct: usize,
 }
 
 /// The photon maps and the counts that normalise them.
 pub struct PhotonMaps {
-    /// First-hit photons.
-    pub direct: KdTree<Photon>,
-    /// Photons after at least one diffuse bounce.
-    pub indirect: KdTree<Photon>,
+    /// Every direct and indirect photon.
+    pub global: GlobalPhotons,
+    /// First-hit photons, when [`PhotonPassSettings::trees`] asked for them.
+    pub direct: Option<KdTree<Photon>>,
+    /// Photons after at least one diffuse bounce, when asked for.
+    pub indirect: Option<KdTree<Photon>>,
     /// Photons after specular-only paths.
     pub caustic: KdTree<Photon>,
     /// Paths emitted for the direct + indirect maps.
@@ -102,7 +130,7 @@ pub struct PhotonMaps {
     pub rays: TraversalStats,
     /// Warnings (e.g. a map that could not be filled).
     pub warnings: Vec<String>,
-    /// Seconds spent building the three kd-trees (part of the pass).
+    /// Seconds spent building the kd-trees (part of the pass).
     pub build_s: f64,
     /// Area of the triangles holding at least one stored global photon.
     pub lit_area_global: f64,
@@ -113,7 +141,17 @@ pub struct PhotonMaps {
 impl PhotonMaps {
     /// Photons stored in the direct + indirect maps.
     pub fn global_len(&self) -> usize {
-        self.direct.len() + self.indirect.len()
+        self.global.photons.len()
+    }
+
+    /// Photons stored in the direct map.
+    pub fn direct_len(&self) -> usize {
+        self.global.direct
+    }
+
+    /// Photons stored in the indirect map.
+    pub fn indirect_len(&self) -> usize {
+        self.global.photons.len() - self.global.direct
     }
 }
 
@@ -136,13 +174,13 @@ fn lit_area(world: &World, photons: &[RawPhoton]) -> f64 {
 /// Every stored photon (direct, indirect, caustic) at its stored position, in one
 /// grid searched by estimates of `k` photons at final-gather hits.
 pub fn global_grid(maps: &PhotonMaps, k: usize) -> nearest::PhotonGrid {
-    let trees = [&maps.direct, &maps.indirect, &maps.caustic];
-    let total = trees.iter().map(|t| t.len()).sum();
+    let (g, c) = (&maps.global, &maps.caustic);
+    let total = g.photons.len() + c.len();
     let (mut pos, mut photons) = (Vec::with_capacity(total), Vec::with_capacity(total));
-    for t in trees {
-        pos.par_extend((0..t.len()).into_par_iter().map(|i| t.position(i)));
-        photons.extend_from_slice(&t.points);
-    }
+    pos.extend_from_slice(&g.pos);
+    photons.extend_from_slice(&g.photons);
+    pos.par_extend((0..c.len()).into_par_iter().map(|i| c.position(i)));
+    photons.extend_from_slice(&c.points);
     nearest::PhotonGrid::build_photons(&pos, &photons, k)
 }
 
@@ -338,32 +376,51 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
         }
     }
     let t_build = std::time::Instant::now();
-    let build = |v: &[RawPhoton], kind: Option<MapKind>, n: u64| -> KdTree<Photon> {
-        let inv = 1.0 / n.max(1) as f32;
+    let inv = |n: u64| 1.0 / n.max(1) as f32;
+    let normalised = |v: &[RawPhoton], kind: Option<MapKind>, inv: f32| -> (Vec<Vec3>, Vec<Photon>) {
         // Parallel and order-preserving: the same maps for any thread count.
-        let sel: Vec<&RawPhoton> = v.par_iter().filter(|r| kind.is_none_or(|k| r.kind == k)).collect();
-        let pos: Vec<Vec3> = sel.par_iter().map(|r| r.pos).collect();
-        let photons = sel.par_iter().map(|r| Photon::new(r.power * inv, r.dir, r.normal)).collect();
-        KdTree::build_with(&pos, photons)
+        v.par_iter().filter(|r| kind.is_none_or(|k| r.kind == k)).map(|r| (r.pos, Photon::new(r.power * inv, r.dir, r.normal))).unzip()
     };
-    let (direct, (indirect, caustic_t)) = rayon::join(
-        || build(&global, Some(MapKind::Direct), n_global),
-        || rayon::join(|| build(&global, Some(MapKind::Indirect), n_global), || build(&caustic, None, n_caustic)),
+    let ((mut pos, mut photons), ((ip, iv), (cp, cv))) = rayon::join(
+        || normalised(&global, Some(MapKind::Direct), inv(n_global)),
+        || rayon::join(|| normalised(&global, Some(MapKind::Indirect), inv(n_global)), || normalised(&caustic, None, inv(n_caustic))),
     );
-    let build_s = t_build.elapsed().as_secs_f64();
+    let direct_count = pos.len();
+    pos.extend_from_slice(&ip);
+    photons.extend_from_slice(&iv);
+    let caustic_t = KdTree::build_with(&cp, cv);
     let (lit_area_global, lit_area_caustic) = (lit_area(world, &global), lit_area(world, &caustic));
-    PhotonMaps {
-        direct,
-        indirect,
+    let mut maps = PhotonMaps {
+        global: GlobalPhotons { pos, photons, direct: direct_count },
+        direct: None,
+        indirect: None,
         caustic: caustic_t,
         emitted_global: n_global,
         emitted_caustic: n_caustic,
         emitted_total: emitted,
         rays,
         warnings,
-        build_s,
+        build_s: 0.0,
         lit_area_global,
         lit_area_caustic,
+    };
+    maps.ensure_trees(s.trees);
+    maps.build_s += t_build.elapsed().as_secs_f64();
+    maps
+}
+
+impl PhotonMaps {
+    /// Builds the kd-trees of the direct and indirect maps that `want` asks for and
+    /// that do not exist yet (the photon integrator calls it again when an output
+    /// that searches them is chosen after the pre-pass).
+    pub fn ensure_trees(&mut self, want: MapTrees) {
+        let g = &self.global;
+        let (d, n) = (g.direct, g.photons.len());
+        let tree = |need: bool, r: std::ops::Range<usize>| need.then(|| KdTree::build_with(&g.pos[r.clone()], g.photons[r].to_vec()));
+        let (direct, indirect) =
+            rayon::join(|| tree(want.direct && self.direct.is_none(), 0..d), || tree(want.indirect && self.indirect.is_none(), d..n));
+        self.direct = self.direct.take().or(direct);
+        self.indirect = self.indirect.take().or(indirect);
     }
 }
 

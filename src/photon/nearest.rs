@@ -19,9 +19,11 @@
 //! grid is capped at 4 cells per point.
 
 use glam::Vec3;
+use starts::CellStarts;
 
 mod disc;
 mod photons;
+mod starts;
 pub use disc::DiscGrid;
 pub use photons::{DecodedPhoton, PhotonGrid};
 
@@ -52,8 +54,8 @@ pub struct PointGrid<T> {
     dims: [i64; 3],
     /// Tiles of TILE³ cells per axis.
     tiles: [i64; 3],
-    /// Start of each cell's points (cells + 1 entries), cells in tile order.
-    start: Vec<u32>,
+    /// Where each cell's points start (cells in tile order).
+    start: CellStarts,
     /// Points in grid order.
     entries: Vec<GridEntry<T>>,
     /// Input index of each point (grid order).
@@ -68,7 +70,7 @@ impl<T> Default for PointGrid<T> {
             inv_cell: 1.0,
             dims: [1; 3],
             tiles: [1; 3],
-            start: vec![0; TILE_CELLS + 1],
+            start: CellStarts::default(),
             entries: Vec::new(),
             order: Vec::new(),
         }
@@ -134,25 +136,12 @@ impl<T: Copy> PointGrid<T> {
             inv_cell: 1.0 / cell,
             dims,
             tiles,
-            start: Vec::new(),
+            start: CellStarts::default(),
             entries: Vec::with_capacity(n),
             order: Vec::new(),
         };
-        let cells = tiles.iter().product::<i64>() as usize * TILE_CELLS;
         let index: Vec<usize> = positions[..n].iter().map(|&p| g.cell_index(g.cell_of(p))).collect();
-        let mut start = vec![0u32; cells + 1];
-        for &c in &index {
-            start[c + 1] += 1;
-        }
-        for c in 0..cells {
-            start[c + 1] += start[c];
-        }
-        let mut at: Vec<u32> = start[..cells].to_vec();
-        let mut order = vec![0u32; n];
-        for (i, &c) in index.iter().enumerate() {
-            order[at[c] as usize] = i as u32;
-            at[c] += 1;
-        }
+        let (start, order) = CellStarts::build(&index, tiles.iter().product::<i64>() as usize);
         g.entries.extend(order.iter().map(|&i| GridEntry { pos: positions[i as usize], item: items[i as usize] }));
         g.order = order;
         g.start = start;
@@ -196,7 +185,7 @@ impl<T> PointGrid<T> {
 
     /// Bytes held (positions, payload, cell starts).
     pub fn memory_bytes(&self) -> usize {
-        self.entries.len() * std::mem::size_of::<GridEntry<T>>() + self.start.len() * 4
+        self.entries.len() * std::mem::size_of::<GridEntry<T>>() + self.start.memory_bytes()
     }
 
     /// Unclamped cell coordinate of `v` on `axis`.
@@ -347,8 +336,8 @@ impl<T> PointGrid<T> {
     #[inline(always)]
     fn row_range(&self, from: [i64; 3], to_x: i64) -> (u32, u32) {
         let c0 = self.cell_index(from);
-        let c1 = c0 + (to_x - from[0]) as usize;
-        (self.start[c0], self.start[c1 + 1])
+        let first = c0 % TILE_CELLS;
+        self.start.range(c0 / TILE_CELLS, first, first + (to_x - from[0]) as usize)
     }
 
     /// Tests the points of the given ranges.

@@ -24,7 +24,7 @@ use crate::material::Material;
 use crate::math::{Color, mean};
 use crate::photon::estimate::with_heap;
 use crate::photon::estimate::{self, EstimateParams, Filter};
-use crate::photon::{PhotonPassSettings, build_maps};
+use crate::photon::{MapTrees, PhotonPassSettings, build_maps};
 use crate::plot::{LinePlot, Series, log_log_slope};
 use crate::registry::{make_accel, make_rr, make_sampler};
 use crate::scene::{Face, MeshData, Placement, Scene};
@@ -154,8 +154,14 @@ fn photon_mse(
     let mut out = Vec::new();
     for &n in counts {
         let sampler = make_sampler("random", 0xF07 ^ n, None)?;
-        let settings =
-            PhotonPassSettings { global_photons: n as usize, caustic_photons: 0, fixed_emit: Some(n), max_emitted: n, max_depth: 8 };
+        let settings = PhotonPassSettings {
+            global_photons: n as usize,
+            caustic_photons: 0,
+            fixed_emit: Some(n),
+            max_emitted: n,
+            max_depth: 8,
+            trees: MapTrees { direct: true, indirect: false },
+        };
         let maps = build_maps(w, sampler.as_ref(), rr.as_ref(), &settings, true);
         let prm = EstimateParams::new(k(n), 1.0, Filter::Cone, 0.25);
         let se: f64 = refs
@@ -164,7 +170,7 @@ fn photon_mse(
                 let Some(it) = it else { return 0.0 };
                 let bsdf = &w.material(it).bsdf;
                 let wo = (w.scene.camera.eye - it.p).normalize();
-                let e = with_heap(|h| estimate::radiance(&maps.direct, it, wo, bsdf, &prm, h));
+                let e = maps.direct.as_ref().map_or(Color::ZERO, |m| with_heap(|h| estimate::radiance(m, it, wo, bsdf, &prm, h)));
                 (mean(e) as f64 - r).powi(2)
             })
             .collect::<Vec<f64>>()

@@ -19,7 +19,7 @@ use crate::material::TransportMode;
 use crate::math::Color;
 use crate::photon::estimate::{self, EstimateParams, Filter, with_heap};
 use crate::photon::irradiance;
-use crate::photon::{self, PhotonPassSettings, build_maps};
+use crate::photon::{self, MapTrees, PhotonPassSettings, build_maps};
 use crate::rr::RussianRoulette;
 use crate::sampler::Sampler;
 use crate::world::World;
@@ -232,7 +232,9 @@ impl PhotonIntegrator {
             }
             return l;
         }
-        let est = |map| with_heap(|h| estimate::radiance(map, &it, wo, bsdf, &ctx.est_global, h));
+        // The trees exist when the output asks for them (`map_trees`).
+        let est =
+            |map: &Option<_>| map.as_ref().map_or(Color::ZERO, |m| with_heap(|h| estimate::radiance(m, &it, wo, bsdf, &ctx.est_global, h)));
         let at = GatherPoint { world, it: &it, wo, bsdf, key };
         match self.output {
             Output::All => {
@@ -248,6 +250,18 @@ impl PhotonIntegrator {
             Output::PhotonsCaustic => l += with_heap(|h| estimate::radiance(&ctx.maps.caustic, &it, wo, bsdf, &ctx.est_caustic, h)),
         }
         l
+    }
+}
+
+impl PhotonIntegrator {
+    /// The kd-trees of the direct and indirect maps this render searches: the
+    /// `photons-direct` / `photons-indirect` outputs and direct visualisation
+    /// (`gather = "direct"`, the indirect map); gathers search the global grid.
+    fn map_trees(&self) -> MapTrees {
+        MapTrees {
+            direct: self.output == Output::PhotonsDirect,
+            indirect: self.output == Output::PhotonsIndirect || self.setup.gather == GatherSpec::Direct,
+        }
     }
 }
 
@@ -270,6 +284,7 @@ impl Integrator for PhotonIntegrator {
             fixed_emit: p.emit_photons,
             max_emitted: p.max_emitted,
             max_depth: cfg.depth_limit(),
+            trees: self.map_trees(),
         };
         let maps = build_maps(world, emit_sampler.as_ref(), self.rr.as_ref(), &settings, self.quiet);
         for w in &maps.warnings {
@@ -337,6 +352,10 @@ impl Integrator for PhotonIntegrator {
 
     fn set_output(&mut self, aov: &str) -> Result<()> {
         self.output = Output::parse(aov)?;
+        let trees = self.map_trees();
+        if let Some(ctx) = &mut self.ctx {
+            ctx.maps.ensure_trees(trees);
+        }
         Ok(())
     }
 
@@ -348,12 +367,14 @@ impl Integrator for PhotonIntegrator {
         let mut m = self.times.clone();
         if let Some(c) = &self.ctx {
             m.insert("photons_emitted".into(), c.maps.emitted_total as f64);
-            m.insert("photons_direct".into(), c.maps.direct.len() as f64);
-            m.insert("photons_indirect".into(), c.maps.indirect.len() as f64);
+            m.insert("photons_direct".into(), c.maps.direct_len() as f64);
+            m.insert("photons_indirect".into(), c.maps.indirect_len() as f64);
             m.insert("photons_caustic".into(), c.maps.caustic.len() as f64);
             m.insert("photon_rays".into(), c.maps.rays.total_rays() as f64);
-            let bytes = c.maps.direct.memory_bytes() + c.maps.indirect.memory_bytes() + c.maps.caustic.memory_bytes();
-            let stored = c.maps.direct.len() + c.maps.indirect.len() + c.maps.caustic.len();
+            let trees = [&c.maps.direct, &c.maps.indirect].iter().filter_map(|t| t.as_ref()).map(|t| t.memory_bytes()).sum::<usize>();
+            let global = c.maps.global_len() * (std::mem::size_of::<Vec3>() + std::mem::size_of::<crate::photon::record::Photon>());
+            let bytes = trees + global + c.maps.caustic.memory_bytes();
+            let stored = c.maps.global_len() + c.maps.caustic.len();
             m.insert("photon_bytes".into(), bytes as f64 / stored.max(1) as f64);
             m.insert("photon_map_bytes".into(), (bytes + c.global.memory_bytes()) as f64);
             if let Some(p) = &c.precomputed {

@@ -17,6 +17,7 @@ impl Gather for DirectVisualisation {
         "direct"
     }
     fn indirect(&self, ctx: &PhotonContext, at: &GatherPoint, _stats: &mut TraversalStats) -> Color {
-        with_heap(|h| estimate::radiance(&ctx.maps.indirect, at.it, at.wo, at.bsdf, &ctx.est_global, h))
+        // The integrator builds the indirect map's tree for this gather (`map_trees`).
+        ctx.maps.indirect.as_ref().map_or(Color::ZERO, |m| with_heap(|h| estimate::radiance(m, at.it, at.wo, at.bsdf, &ctx.est_global, h)))
     }
 }
