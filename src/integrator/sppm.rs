@@ -241,14 +241,15 @@ impl SppmIntegrator {
     /// Traces pixel (x, y)'s camera path of pass `pass`: emitted + direct radiance and
     /// the visible point, if the path reaches a non-delta surface.
     /// `direct` is the direct-light sampler (unused with `sppm_direct = "photons"`).
+    /// Generic over the camera sampler (static dispatch in the camera pass).
     #[allow(clippy::too_many_arguments)]
-    pub fn camera_path(
+    pub fn camera_path<S: Sampler + ?Sized>(
         &self,
         world: &World,
         x: u32,
         y: u32,
         pass: u32,
-        s: &mut dyn Sampler,
+        s: &mut S,
         direct: &mut dyn Sampler,
         stats: &mut TraversalStats,
     ) -> CameraSample {
@@ -326,9 +327,10 @@ impl SppmIntegrator {
         let alpha = self.set.prog.alpha as f64;
         let r0 = self.set.p.sppm_radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius) as f64;
         let counts = (budget.max_passes != u32::MAX).then_some(budget.max_passes as u64);
-        let cam_sampler = crate::sampler::make(&self.cfg.sampler, self.cfg.seed, counts)?;
+        // Concrete samplers: the camera and photon passes are compiled per sampler type.
+        let cam_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, counts)?;
         // Every pass traces photon indices 0 … M − 1 of a stream of its own.
-        let emit_sampler = crate::sampler::make(&self.cfg.sampler, self.cfg.seed, Some(m))?;
+        let emit_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, Some(m))?;
         let probes = self.set.p.sppm_area_probes;
         let keep_first = self.set.p.sppm_direct == "photons";
         let n_direct = self.set.direct.direct_samples.max(1) as u64;
@@ -364,12 +366,14 @@ impl SppmIntegrator {
                 .zip(vps.par_chunks_mut(w as usize))
                 .enumerate()
                 .map_init(
-                    || (cam_sampler.clone_box(), direct_sampler.clone_box()),
+                    || (cam_sampler.clone(), direct_sampler.clone_box()),
                     |(s, ds), (y, (prow, vrow))| {
                         let mut st = TraversalStats::default();
                         let mut bad = 0u64;
                         for (x, (px, vp)) in prow.iter_mut().zip(vrow.iter_mut()).enumerate() {
-                            let (l, v) = self.camera_path(world, x as u32, y as u32, pass, s.as_mut(), ds.as_mut(), &mut st);
+                            let (l, v) = crate::sampler::with_sampler!(&mut *s, s => {
+                                self.camera_path(world, x as u32, y as u32, pass, s, ds.as_mut(), &mut st)
+                            });
                             if crate::math::is_finite(l) {
                                 px.ld += l.as_dvec3();
                             } else {
@@ -410,14 +414,17 @@ impl SppmIntegrator {
                 .par_iter_mut()
                 .enumerate()
                 .map_init(
-                    || (emit_sampler.clone_box(), Vec::new()),
+                    || (emit_sampler.clone(), Vec::new()),
                     |(s, raw), (c, out)| {
                         raw.clear();
                         let mut st = TraversalStats::default();
                         let c = c as u64;
-                        for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
-                            trace_path_in(world, s.as_mut(), stream, j, self.rr.as_ref(), self.cfg.depth_limit(), &mut st, raw);
-                        }
+                        let (rr, depth) = (self.rr.as_ref(), self.cfg.depth_limit());
+                        crate::sampler::with_sampler!(&mut *s, s => {
+                            for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
+                                trace_path_in(world, s, stream, j, rr, depth, &mut st, raw);
+                            }
+                        });
                         out.clear();
                         out.extend(raw.iter().filter(|p| keep_first || p.kind != MapKind::Direct).map(GridPhoton::from));
                         st

@@ -193,10 +193,13 @@ pub fn trace_path(
 /// [`trace_path`] with sample `index` of sampler stream `stream` instead of the one
 /// emission sequence [`PHOTON_STREAM`] (`sppm` gives every pass a stream of its own,
 /// so indices stay small: fewer radical-inverse digits, independent passes).
+///
+/// Generic over the sampler so that hot callers holding a concrete one (`sppm`, via
+/// [`crate::sampler::with_sampler!`]) draw without a virtual call per dimension.
 #[allow(clippy::too_many_arguments)]
-pub fn trace_path_in(
+pub fn trace_path_in<S: Sampler + ?Sized>(
     world: &World,
-    sampler: &mut dyn Sampler,
+    sampler: &mut S,
     stream: u64,
     index: u64,
     rr: &dyn RussianRoulette,
