@@ -43,7 +43,7 @@ use crate::film::Film;
 use crate::integrator::render::RenderStats;
 use crate::material::{ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
-use crate::photon::{MapKind, trace_path_in};
+use crate::photon::{MapKind, RawPhoton, trace_path_in};
 use crate::rr::{RrContext, RussianRoulette, roulette};
 use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
 use crate::world::World;
@@ -414,19 +414,19 @@ impl SppmIntegrator {
                 .par_iter_mut()
                 .enumerate()
                 .map_init(
-                    || (emit_sampler.clone(), Vec::new()),
-                    |(s, raw), (c, out)| {
-                        raw.clear();
+                    || emit_sampler.clone(),
+                    |s, (c, out)| {
+                        out.clear();
                         let mut st = TraversalStats::default();
                         let c = c as u64;
                         let (rr, depth) = (self.rr.as_ref(), self.cfg.depth_limit());
+                        // Kept photons go straight into the chunk's buffer, in path order.
+                        let mut keep = Kept { out, keep_first };
                         crate::sampler::with_sampler!(&mut *s, s => {
                             for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
-                                trace_path_in(world, s, stream, j, rr, depth, &mut st, raw);
+                                trace_path_in(world, s, stream, j, rr, depth, &mut st, &mut keep);
                             }
                         });
-                        out.clear();
-                        out.extend(raw.iter().filter(|p| keep_first || p.kind != MapKind::Direct).map(GridPhoton::from));
                         st
                     },
                 )
@@ -496,6 +496,21 @@ impl SppmIntegrator {
         let mean_r = pixels.iter().map(|p| p.r).sum::<f64>() / npix.max(1) as f64;
         c.insert("mean_radius".into(), mean_r);
         Ok((film, stats))
+    }
+}
+
+/// The photon pass's sink: keeps a traced photon as a [`GridPhoton`] unless it is a
+/// first hit and first hits are left to the shadow rays.
+struct Kept<'a> {
+    out: &'a mut Vec<GridPhoton>,
+    keep_first: bool,
+}
+
+impl Extend<RawPhoton> for Kept<'_> {
+    #[inline]
+    fn extend<I: IntoIterator<Item = RawPhoton>>(&mut self, photons: I) {
+        let keep_first = self.keep_first;
+        self.out.extend(photons.into_iter().filter(|p| keep_first || p.kind != MapKind::Direct).map(|p| GridPhoton::from(&p)));
     }
 }
 
