@@ -231,16 +231,21 @@ pub fn trace_path(
 /// [`trace_path`] with sample `index` of sampler stream `stream` instead of the one
 /// emission sequence [`PHOTON_STREAM`] (`sppm` gives every pass a stream of its own,
 /// so indices stay small: fewer radical-inverse digits, independent passes).
+///
+/// Generic over the sampler so that hot callers holding a concrete one (`sppm`, via
+/// [`crate::sampler::with_sampler!`]) draw without a virtual call per dimension, and
+/// over where the photons go (a `Vec<RawPhoton>`, or a caller's own sink that keeps
+/// only some, in its own format).
 #[allow(clippy::too_many_arguments)]
-pub fn trace_path_in(
+pub fn trace_path_in<S: Sampler + ?Sized>(
     world: &World,
-    sampler: &mut dyn Sampler,
+    sampler: &mut S,
     stream: u64,
     index: u64,
     rr: &dyn RussianRoulette,
     max_depth: u32,
     stats: &mut TraversalStats,
-    out: &mut Vec<RawPhoton>,
+    out: &mut impl Extend<RawPhoton>,
 ) {
     sampler.start(stream, index);
     let u_sel = sampler.next_1d();
@@ -257,7 +262,7 @@ pub fn trace_path_in(
         let wo = -ray.d;
         if !bsdf.is_delta() {
             let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
-            out.push(RawPhoton { kind: state.map(), pos: it.p, power, dir: wo, normal: n, tri: it.tri });
+            out.extend(std::iter::once(RawPhoton { kind: state.map(), pos: it.p, power, dir: wo, normal: n, tri: it.tri }));
         }
         if depth >= max_depth {
             break;

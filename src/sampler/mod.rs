@@ -164,12 +164,55 @@ pub const NAMES: &[&str] = &["random", "halton", "hammersley", "sobol"];
 /// Builds a sampler. `count` is the number of samples per stream when known up
 /// front (required by `hammersley`).
 pub fn make(name: &str, seed: u64, count: Option<u64>) -> Result<Box<dyn Sampler>> {
+    Ok(make_any(name, seed, count)?.boxed())
+}
+
+/// One sampler of [`make`] by value, for hot loops that run monomorphised per
+/// sampler type (static dispatch: no virtual call per dimension, and the digit
+/// loops inline into the caller): match it with [`with_sampler!`].
+#[derive(Clone)]
+pub enum AnySampler {
+    /// `random`.
+    Random(random::RandomSampler),
+    /// `halton`.
+    Halton(halton::HaltonSampler),
+    /// `hammersley`.
+    Hammersley(hammersley::HammersleySampler),
+    /// `sobol`.
+    Sobol(sobol::SobolSampler),
+}
+
+impl AnySampler {
+    /// The sampler behind a trait object.
+    pub fn boxed(self) -> Box<dyn Sampler> {
+        with_sampler!(self, s => Box::new(s))
+    }
+}
+
+/// `with_sampler!(any, s => expr)`: evaluates `expr` with `s` bound to the concrete
+/// sampler inside the [`AnySampler`] `any` (by value, `&` or `&mut`, as `any` is), so
+/// `expr` is compiled once per sampler type.
+#[macro_export]
+macro_rules! with_sampler {
+    ($any:expr, $s:ident => $body:expr) => {
+        match $any {
+            $crate::sampler::AnySampler::Random($s) => $body,
+            $crate::sampler::AnySampler::Halton($s) => $body,
+            $crate::sampler::AnySampler::Hammersley($s) => $body,
+            $crate::sampler::AnySampler::Sobol($s) => $body,
+        }
+    };
+}
+pub use with_sampler;
+
+/// [`make`] without the box.
+pub fn make_any(name: &str, seed: u64, count: Option<u64>) -> Result<AnySampler> {
     Ok(match name {
-        "random" => Box::new(random::RandomSampler::new(seed)),
-        "halton" => Box::new(halton::HaltonSampler::new(seed)),
-        "sobol" => Box::new(sobol::SobolSampler::new(seed)),
+        "random" => AnySampler::Random(random::RandomSampler::new(seed)),
+        "halton" => AnySampler::Halton(halton::HaltonSampler::new(seed)),
+        "sobol" => AnySampler::Sobol(sobol::SobolSampler::new(seed)),
         "hammersley" => match count {
-            Some(n) => Box::new(hammersley::HammersleySampler::new(seed, n)?),
+            Some(n) => AnySampler::Hammersley(hammersley::HammersleySampler::new(seed, n)?),
             None => bail!("sampler `hammersley` needs the sample count up front, which is unknown here; use `halton` or `random`"),
         },
         _ => bail!("unknown sampler `{name}` (known: {})", NAMES.join(", ")),
@@ -215,6 +258,30 @@ mod tests {
                 assert_eq!(got.to_vec(), want, "{name} stream {stream} index {index} dim {dim}");
                 assert_eq!((s.current(), s.dimension()), ((5, 3), 4), "{name}: values_at moved the sampler");
             }
+        }
+    }
+
+    /// Drawing through [`with_sampler!`] (static dispatch) gives what the boxed
+    /// sampler of [`make`] gives, for every sampler.
+    #[test]
+    fn static_dispatch_draws_equal_the_boxed_sampler() {
+        fn draws<S: Sampler + ?Sized>(s: &mut S) -> Vec<f32> {
+            let mut v = Vec::new();
+            for (stream, index) in [(0u64, 0u64), (7, 3), (u64::MAX - 1, 1000), (123, 63)] {
+                s.start(stream, index);
+                v.push(s.next_1d());
+                v.extend(s.next_2d());
+                s.set_dimension(bounce_dim(3));
+                v.extend(s.next_2d());
+            }
+            v
+        }
+        for name in NAMES {
+            let mut any = make_any(name, 5, Some(64)).unwrap();
+            let got = with_sampler!(&mut any, s => draws(s));
+            let mut boxed = make(name, 5, Some(64)).unwrap();
+            assert_eq!(got, draws(boxed.as_mut()), "{name}");
+            assert_eq!(any.boxed().name(), *name);
         }
     }
 
