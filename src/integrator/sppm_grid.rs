@@ -15,6 +15,7 @@
 //! All buffers are reused when the grid is rebuilt (no fresh pages per pass).
 
 use crate::math::{Color, mix64};
+use crate::photon::nearest::prefetch;
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -274,30 +275,43 @@ impl PhotonGrid {
         let r2 = r * r;
         let lo = ((p - Vec3::splat(r)) * self.inv_cell).floor().as_ivec3();
         let hi = ((p + Vec3::splat(r)) * self.inv_cell).floor().as_ivec3();
-        let mut seen = [usize::MAX; 27];
+        // The distinct buckets of the (up to) 3 × 3 × 3 cells, then their ranges, each
+        // step's loads requested before any is used, so the cache misses of the
+        // buckets overlap instead of forming one chain per bucket.
+        let mut seen = [0usize; 27];
         let mut n = 0;
         for z in lo.z..=hi.z.min(lo.z + 2) {
             for y in lo.y..=hi.y.min(lo.y + 2) {
                 for x in lo.x..=hi.x.min(lo.x + 2) {
                     let b = cell_hash(IVec3::new(x, y, z), self.mask);
-                    if seen[..n].contains(&b) {
-                        continue;
-                    }
-                    seen[n] = b;
-                    n += 1;
-                    let (mut i, end) = (self.start[b] as usize, self.start[b + 1] as usize);
-                    while i < end {
-                        let mut mask = self.block(i, p, r2);
-                        if end - i < BLOCK {
-                            mask &= (1 << (end - i)) - 1;
-                        }
-                        while mask != 0 {
-                            f(&self.shade[i + mask.trailing_zeros() as usize]);
-                            mask &= mask - 1;
-                        }
-                        i += BLOCK;
+                    if !seen[..n].contains(&b) {
+                        prefetch(&self.start[b]);
+                        seen[n] = b;
+                        n += 1;
                     }
                 }
+            }
+        }
+        let mut ranges = [(0usize, 0usize); 27];
+        for (r, &b) in ranges.iter_mut().zip(&seen[..n]) {
+            *r = (self.start[b] as usize, self.start[b + 1] as usize);
+            if r.0 < r.1 {
+                for v in [&self.x, &self.y, &self.z] {
+                    prefetch(&v[r.0]);
+                }
+            }
+        }
+        for &(mut i, end) in &ranges[..n] {
+            while i < end {
+                let mut mask = self.block(i, p, r2);
+                if end - i < BLOCK {
+                    mask &= (1 << (end - i)) - 1;
+                }
+                while mask != 0 {
+                    f(&self.shade[i + mask.trailing_zeros() as usize]);
+                    mask &= mask - 1;
+                }
+                i += BLOCK;
             }
         }
     }

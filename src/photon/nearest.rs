@@ -389,7 +389,7 @@ fn floor_i64(x: f32) -> i64 {
 
 /// Hints the cache to fetch the line holding `x`.
 #[inline(always)]
-fn prefetch<U>(x: &U) {
+pub(crate) fn prefetch<U>(x: &U) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch never faults, and `x` is a valid reference.
     unsafe {
