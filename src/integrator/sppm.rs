@@ -361,7 +361,9 @@ impl SppmIntegrator {
         while budget.more(pass) {
             // 1. Camera pass: rows in parallel, written in place.
             let t0 = Instant::now();
-            let (st, bad) = pixels
+            // Also the largest radius of a pixel with a visible point (the grid's cell
+            // edge), while the rows are at hand: radii change only in the update.
+            let (st, bad, r_max) = pixels
                 .par_chunks_mut(w as usize)
                 .zip(vps.par_chunks_mut(w as usize))
                 .enumerate()
@@ -369,7 +371,7 @@ impl SppmIntegrator {
                     || (cam_sampler.clone(), direct_sampler.clone_box()),
                     |(s, ds), (y, (prow, vrow))| {
                         let mut st = TraversalStats::default();
-                        let mut bad = 0u64;
+                        let (mut bad, mut r_max) = (0u64, 0.0f64);
                         for (x, (px, vp)) in prow.iter_mut().zip(vrow.iter_mut()).enumerate() {
                             let (l, v) = crate::sampler::with_sampler!(&mut *s, s => {
                                 self.camera_path(world, x as u32, y as u32, pass, s, ds.as_mut(), &mut st)
@@ -387,17 +389,19 @@ impl SppmIntegrator {
                                     px.area_hits += area_probe(world, v, px.r as f32, u, &mut st) as u32 as f64;
                                 }
                                 px.area_probes += probes as f64;
+                                r_max = r_max.max(px.r);
                             }
                             *vp = v;
                         }
-                        (st, bad)
+                        (st, bad, r_max)
                     },
                 )
                 .reduce(
-                    || (TraversalStats::default(), 0),
+                    || (TraversalStats::default(), 0, 0.0f64),
                     |mut a, b| {
                         a.0.add(&b.0);
                         a.1 += b.1;
+                        a.2 = a.2.max(b.2);
                         a
                     },
                 );
@@ -441,7 +445,6 @@ impl SppmIntegrator {
 
             // 3. Gather into the visible points and 4. update.
             let t2 = Instant::now();
-            let r_max = vps.iter().zip(&pixels).filter(|(v, _)| v.is_some()).map(|(_, p)| p.r).fold(0.0f64, f64::max);
             if r_max > 0.0 && kept > 0 {
                 // A little over r_max, so rounding never makes a disc span four cells.
                 grid.build(&traced, (r_max * (1.0 + 1e-4)) as f32);
