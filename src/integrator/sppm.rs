@@ -593,21 +593,10 @@ pub fn area_probe(world: &World, vp: &VisiblePoint, r: f32, u: [f32; 2], stats: 
     }
 }
 
-/// The area probe's direction: `-n` with every zero component replaced by ±2⁻⁶⁰.
-/// Probes run along surface normals, which are often axis-aligned (walls, floors),
-/// and the wide BVHs cannot cull along an axis a ray is parallel to (infinite inverse
-/// direction: no culling on that axis, by design): on the cornell-glass floor every
-/// probe tested the same 472 child boxes and 1036 triangles (every node touching the
-/// floor's plane), where a photon ray tests ~21 and ~8. The nudge restores culling
-/// (`bvh8`: 8× fewer box and 20× fewer triangle tests per probe, `bvh4` 1.6× and
-/// 4.6×; `bvh8q` 12 % more box but 44 % fewer triangle tests, as its shared slack
-/// grows with the huge inverse; `bvh` unchanged). Over a distance d it moves the ray
-/// by d·2⁻⁶⁰, far below the f32 spacing of coordinates, so it meets the same
-/// triangles (images stay bit-identical; `area_probes_along_axes_agree_…` checks).
+/// The area probe's direction: `-n` off the axes ([`crate::geometry::off_axis`]).
 #[inline]
 fn probe_dir(n: Vec3) -> Vec3 {
-    const TINY: f32 = 1.0 / (1u64 << 60) as f32;
-    (-n).to_array().map(|c| if c == 0.0 { TINY.copysign(c) } else { c }).into()
+    crate::geometry::off_axis(-n)
 }
 
 /// Photons within `r` of the visible point that arrived on its side: their count and

@@ -296,6 +296,7 @@ pub fn coverage(world: &World, p: Vec3, n: Vec3, r2: f32, prm: &EstimateParams, 
     let r = r2.sqrt();
     let thick = (prm.disc * prm.max_radius).max(1e-4 * r);
     let frame = Frame::new(n);
+    let down = crate::geometry::off_axis(-n);
     let rot = u32_to_unit((seed >> 32) as u32) * std::f32::consts::TAU;
     let (mut flat, mut got) = (0.0f32, 0.0f32);
     for j in 0..m {
@@ -306,8 +307,10 @@ pub fn coverage(world: &World, p: Vec3, n: Vec3, r2: f32, prm: &EstimateParams, 
         let mut o = x + n * thick;
         let mut left = 2.0 * thick;
         for _ in 0..4 {
-            let Some(hit) = world.accel.intersect(&Ray::new(o, -n), left, stats) else { break };
-            let it = world.interaction(&Ray::new(o, -n), &hit);
+            // Off the axes: probes along axis-aligned normals would get no BVH culling.
+            let ray = Ray::new(o, down);
+            let Some(hit) = world.accel.intersect(&ray, left, stats) else { break };
+            let it = world.interaction(&ray, &hit);
             let cos = it.sp.ng.dot(n).abs();
             // Mirrors and glass hold no photons, and a surface outside the sphere (the
             // far side of an object standing on the surface) hides none of the area
