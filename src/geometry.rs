@@ -165,6 +165,16 @@ mod tests {
     use super::*;
 
     #[test]
+    fn off_axis_direction_has_no_zero_component() {
+        for n in [Vec3::Y, -Vec3::X, Vec3::Z, Vec3::new(0.6, 0.0, -0.8), Vec3::new(0.0, -0.0, 1.0)] {
+            let d = off_axis(-n);
+            assert!(d.to_array().iter().all(|c| *c != 0.0), "{d}");
+            assert!((d + n).abs().max_element() <= 1e-18, "{d} vs {}", -n);
+            assert!(d.dot(-n) > 0.0);
+        }
+    }
+
+    #[test]
     fn triangle_hit_and_miss() {
         let v0 = Vec3::ZERO;
         let e1 = Vec3::X;

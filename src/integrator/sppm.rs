@@ -582,7 +582,8 @@ pub fn area_probe(world: &World, vp: &VisiblePoint, r: f32, u: [f32; 2], stats: 
     let q = crate::math::concentric_disc(u);
     let h = 0.25 * r;
     let o = vp.p + (f.s * q[0] + f.t * q[1]) * r + vp.n * h;
-    let ray = crate::geometry::Ray::new(o, probe_dir(vp.n));
+    // Off the axes: probes along axis-aligned normals would get no BVH culling.
+    let ray = crate::geometry::Ray::new(o, crate::geometry::off_axis(-vp.n));
     match world.accel.intersect(&ray, 2.0 * h, stats) {
         Some(hit) => {
             let t = &world.scene.triangles[hit.tri as usize];
@@ -591,12 +592,6 @@ pub fn area_probe(world: &World, vp: &VisiblePoint, r: f32, u: [f32; 2], stats: 
         }
         None => false,
     }
-}
-
-/// The area probe's direction: `-n` off the axes ([`crate::geometry::off_axis`]).
-#[inline]
-fn probe_dir(n: Vec3) -> Vec3 {
-    crate::geometry::off_axis(-n)
 }
 
 /// Photons within `r` of the visible point that arrived on its side: their count and

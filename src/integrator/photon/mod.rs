@@ -251,9 +251,7 @@ impl PhotonIntegrator {
         }
         l
     }
-}
 
-impl PhotonIntegrator {
     /// The kd-trees of the direct and indirect maps this render searches: the
     /// `photons-direct` / `photons-indirect` outputs and direct visualisation
     /// (`gather = "direct"`, the indirect map); gathers search the global grid.
