@@ -214,6 +214,11 @@ pub fn render_range(
             let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
             for y in y0..y1 {
                 for x in x0..x1 {
+                    if crate::progress::cancelled() {
+                        // Stopped (`progress::cancel`): `render_part` discards the sums.
+                        out.push([0; 3]);
+                        continue;
+                    }
                     let stream = y as u64 * w as u64 + x as u64;
                     let mut sum = [0i128; 3];
                     for i in range.start..range.end {
@@ -297,6 +302,7 @@ pub fn render_part(scene: Scene, cfg: &RenderConfig, range: SampleRange, key: &s
         let t0 = Instant::now();
         let Prepared { world, integrator, sampler, accel_build_s, preprocess_s, .. } = prepare(scene, cfg, quiet)?;
         let (sums, stats, too_large) = render_range(&world, integrator.as_ref(), sampler.as_ref(), range, quiet);
+        crate::progress::check_cancel()?;
         if too_large > 0 {
             bail!("{too_large} sample(s) of {range} exceed {MAX_SAMPLE:e} in magnitude, beyond the exact sums' range");
         }

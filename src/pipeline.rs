@@ -81,10 +81,13 @@ pub fn render_scene_observed(
     let threads = pool.current_num_threads();
     pool.install(|| {
         let Prepared { world, mut integrator, sampler, accel_build_s, accel_bytes, preprocess_s } = prepare(scene, cfg, quiet)?;
+        crate::progress::check_cancel()?;
         let (film, stats) = match integrator.render_progressive(&world, on_pass) {
             Some(done) => done?,
             None => render(&world, integrator.as_ref(), sampler.as_ref(), cfg.spp, quiet),
         };
+        // A cancelled render's image is incomplete: never hand it out.
+        crate::progress::check_cancel()?;
         let mut extra_images = Vec::new();
         for name in aovs {
             if name == "cache" {
@@ -93,6 +96,7 @@ pub fn render_scene_observed(
             }
             integrator.set_output(name)?;
             let (img, _) = render(&world, integrator.as_ref(), sampler.as_ref(), cfg.spp, quiet);
+            crate::progress::check_cancel()?;
             extra_images.push((name.clone(), img));
         }
         Ok(RenderOutcome {

@@ -43,6 +43,19 @@ pub struct LinePlot {
     pub series: Vec<Series>,
 }
 
+/// A horizontal band across a line chart, from `lo` (clipped to the bottom of the
+/// axis) to `hi`, drawn translucent under the lines with a line along its top: a
+/// level the data cannot resolve beyond (a reference's own noise).
+#[derive(Clone, Debug)]
+pub struct Band {
+    /// Legend label.
+    pub name: String,
+    /// Bottom (0, or anything below the axis, fills to the bottom).
+    pub lo: f64,
+    /// Top.
+    pub hi: f64,
+}
+
 /// Stacked bars: one bar per category, one layer per stack entry.
 #[derive(Clone, Debug)]
 pub struct StackedBars {
@@ -80,13 +93,15 @@ fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     }
 }
 
-fn draw_lines<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, p: &LinePlot) -> Result<()>
+fn draw_lines<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, p: &LinePlot, bands: &[Band]) -> Result<()>
 where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(|e| anyhow!("{e:?}"))?;
     let (x0, x1) = range(p.series.iter().flat_map(|s| s.points.iter().map(|q| q.0)), p.log_x);
-    let (y0, y1) = range(p.series.iter().flat_map(|s| s.points.iter().map(|q| q.1)), p.log_y);
+    // The y range takes in each band's top, so a floor below every point still shows.
+    let band_tops = bands.iter().map(|b| b.hi);
+    let (y0, y1) = range(p.series.iter().flat_map(|s| s.points.iter().map(|q| q.1)).chain(band_tops), p.log_y);
     let mut b = ChartBuilder::on(&root);
     b.caption(&p.title, ("sans-serif", 22)).margin(12).x_label_area_size(45).y_label_area_size(70);
     macro_rules! body {
@@ -99,6 +114,19 @@ where
                 .label_style(("sans-serif", 14))
                 .draw()
                 .map_err(|e| anyhow!("{e:?}"))?;
+            // Bands first, so the lines are drawn over them; greys apart from the lines' colours.
+            for (i, band) in bands.iter().enumerate().filter(|(_, b)| b.hi.is_finite() && b.hi > y0) {
+                let shade = RGBColor(90 + (i as u8 % 4) * 30, 90 + (i as u8 % 4) * 30, 110 + (i as u8 % 4) * 30);
+                let (lo, hi) = (band.lo.max(y0), band.hi.min(y1));
+                chart
+                    .draw_series(std::iter::once(Rectangle::new([(x0, lo), (x1, hi)], shade.mix(0.18).filled())))
+                    .map_err(|e| anyhow!("{e:?}"))?
+                    .label(band.name.as_str())
+                    .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], shade.mix(0.35).filled()));
+                chart
+                    .draw_series(std::iter::once(PathElement::new(vec![(x0, hi), (x1, hi)], shade.stroke_width(1))))
+                    .map_err(|e| anyhow!("{e:?}"))?;
+            }
             for (i, s) in p.series.iter().enumerate() {
                 let color = Palette99::pick(i).to_rgba();
                 let pts: Vec<(f64, f64)> = s
@@ -210,10 +238,15 @@ fn both(stem: &Path, png: impl FnOnce(&Path) -> Result<()>, svg: impl FnOnce(&Pa
 
 /// Writes `stem.png` and `stem.svg` with a line chart.
 pub fn line_plot(stem: &Path, plot: &LinePlot) -> Result<(PathBuf, PathBuf)> {
+    line_plot_with_bands(stem, plot, &[])
+}
+
+/// [`line_plot`] with horizontal bands under the lines.
+pub fn line_plot_with_bands(stem: &Path, plot: &LinePlot, bands: &[Band]) -> Result<(PathBuf, PathBuf)> {
     both(
         stem,
-        |p| draw_lines(BitMapBackend::new(p, (900, 600)).into_drawing_area(), plot),
-        |p| draw_lines(SVGBackend::new(p, (900, 600)).into_drawing_area(), plot),
+        |p| draw_lines(BitMapBackend::new(p, (900, 600)).into_drawing_area(), plot, bands),
+        |p| draw_lines(SVGBackend::new(p, (900, 600)).into_drawing_area(), plot, bands),
     )
 }
 

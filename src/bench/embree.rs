@@ -1,10 +1,12 @@
-//! `bench embree-compare`: runs the Embree reference harness (`shared/bench/embree`,
-//! a C program over Debian's Embree 3) and `bench accel` on the same OBJ files with
+//! `bench embree-compare`: runs the Embree reference harness (a C program over
+//! Debian's Embree 3, not part of the repository: `--harness-dir DIR` or
+//! `PHOTONLAB_EMBREE_DIR` names its folder) and `bench accel` on the same OBJ files with
 //! the same ray definitions, case by case and back to back (so both see the same
 //! machine load), and prints photonlab/Embree throughput ratios per ray set.
 //!
-//! Cases: the Stanford dragon and Dabrovic Sponza from the shared scene folder (when
-//! present) and the built-in displaced sphere (≥ 1 M triangles) exported as OBJ,
+//! Cases: the Stanford dragon and Dabrovic Sponza from `--scenes` (when present; see
+//! docs/experiments.md for the downloads) and the built-in displaced sphere (≥ 1 M
+//! triangles) exported as OBJ,
 //! each with the outside and the inside camera, at each thread count.
 
 use super::accel::{BenchMesh, BenchRow, run_mesh};
@@ -17,13 +19,16 @@ use std::process::Command;
 #[derive(Args, Debug, Clone)]
 pub struct EmbreeArgs {
     /// The harness binary (default: `embree_bench` in --harness-dir, else a copy built
-    /// under `target/embree-harness/` from the sources there).
+    /// under --work-dir from the sources there, else one built there before).
     #[arg(long)]
     pub harness: Option<PathBuf>,
-    /// Folder with the harness sources (`embree_bench.c`, `build.sh`).
-    #[arg(long, default_value = "../shared/bench/embree")]
-    pub harness_dir: PathBuf,
-    /// Folder with `stanford-dragon/dragon.obj` and `sponza-dabrovic/sponza.obj`.
+    /// Folder with the harness sources (`embree_bench.c`, `build.sh`); default: the
+    /// environment variable PHOTONLAB_EMBREE_DIR. The harness is not part of the
+    /// repository (docs/benchmarks.md says where it comes from).
+    #[arg(long, visible_alias = "embree-dir")]
+    pub harness_dir: Option<PathBuf>,
+    /// Folder with `stanford-dragon/dragon.obj` and `sponza-dabrovic/sponza.obj`
+    /// (missing models are skipped; docs/experiments.md lists the downloads).
     #[arg(long, default_value = "../shared/scenes")]
     pub scenes: PathBuf,
     /// Where the built-in sphere is exported (and the harness built if needed).
@@ -85,7 +90,14 @@ pub struct CompareRow {
     pub photonlab_build_s: f64,
 }
 
-/// Finds the harness binary, building a private copy from the sources if needed.
+/// How to get the harness, for the errors of [`locate_harness`].
+const HOW_TO_GET: &str = "the Embree harness (embree_bench.c and build.sh, a C program over Debian's libembree-dev) is not \
+     part of the repository: on the project's machines it is shared/bench/embree beside the clone; pass its folder with \
+     --harness-dir DIR (or set PHOTONLAB_EMBREE_DIR), or a built binary with --harness PATH";
+
+/// Finds the harness binary: `--harness`, else `embree_bench` in the harness folder,
+/// else a private copy built under `--work-dir` from the sources there, else a copy
+/// built there before.
 fn locate_harness(a: &EmbreeArgs) -> Result<PathBuf> {
     if let Some(h) = &a.harness {
         if h.is_file() {
@@ -93,25 +105,31 @@ fn locate_harness(a: &EmbreeArgs) -> Result<PathBuf> {
         }
         bail!("--harness {}: no such file", h.display());
     }
-    for cand in [a.harness_dir.join("embree_bench"), a.work_dir.join("embree_bench")] {
+    let built = a.work_dir.join("embree_bench");
+    let from_env = || std::env::var_os("PHOTONLAB_EMBREE_DIR").filter(|v| !v.is_empty()).map(PathBuf::from);
+    let Some(dir) = &a.harness_dir.clone().or_else(from_env) else {
+        if built.is_file() {
+            return Ok(built);
+        }
+        bail!("no Embree harness given and none built in {}: {HOW_TO_GET}", a.work_dir.display());
+    };
+    if !dir.is_dir() {
+        bail!("--harness-dir {}: no such folder ({HOW_TO_GET})", dir.display());
+    }
+    for cand in [dir.join("embree_bench"), built.clone()] {
         if cand.is_file() {
             return Ok(cand);
         }
     }
-    let src = a.harness_dir.join("embree_bench.c");
+    let src = dir.join("embree_bench.c");
     if !src.is_file() {
-        bail!(
-            "Embree harness not found: no {} and no sources at {} (give --harness PATH or --harness-dir DIR; \
-             the harness is shared/bench/embree in the project's shared folder)",
-            a.work_dir.join("embree_bench").display(),
-            src.display()
-        );
+        bail!("--harness-dir {}: no embree_bench.c there ({HOW_TO_GET})", dir.display());
     }
+    let harness_dir = dir;
     // Build a copy: the shared folder stays untouched.
     std::fs::create_dir_all(&a.work_dir).with_context(|| format!("creating {}", a.work_dir.display()))?;
     for f in ["embree_bench.c", "build.sh"] {
-        std::fs::copy(a.harness_dir.join(f), a.work_dir.join(f))
-            .with_context(|| format!("copying {f} from {}", a.harness_dir.display()))?;
+        std::fs::copy(harness_dir.join(f), a.work_dir.join(f)).with_context(|| format!("copying {f} from {}", harness_dir.display()))?;
     }
     eprintln!("building the Embree harness in {} (build.sh installs libembree-dev if missing)", a.work_dir.display());
     let st = Command::new("bash").arg("build.sh").current_dir(&a.work_dir).status().context("running build.sh")?;
@@ -173,7 +191,7 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
             continue;
         }
         if !path.is_file() {
-            eprintln!("skipping {name}: {} not found (see SOURCES.md in the scene folder)", path.display());
+            eprintln!("skipping {name}: {} not found (docs/experiments.md says where to download it; --scenes DIR)", path.display());
             continue;
         }
         let mesh = BenchMesh::from_obj(path)?;
@@ -310,6 +328,34 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_missing_harness_says_how_to_get_it() {
+        let work = tempfile::tempdir().unwrap();
+        let mut a = EmbreeArgs {
+            harness: None,
+            harness_dir: Some(work.path().join("nowhere")),
+            scenes: work.path().into(),
+            work_dir: work.path().join("build"),
+            rays: 10,
+            threads: vec![1],
+            accel: vec!["bvh8".into()],
+            cases: vec![],
+            repeats: 1,
+            json: false,
+        };
+        let e = locate_harness(&a).unwrap_err().to_string();
+        assert!(e.contains("nowhere") && e.contains("--harness-dir") && e.contains("not part of the repository"), "{e}");
+        // A folder without the sources names the file it looked for.
+        a.harness_dir = Some(work.path().into());
+        let e = locate_harness(&a).unwrap_err().to_string();
+        assert!(e.contains("embree_bench.c") && e.contains("--harness-dir"), "{e}");
+        // A binary built in the work folder earlier is found without a folder.
+        std::fs::create_dir_all(&a.work_dir).unwrap();
+        std::fs::write(a.work_dir.join("embree_bench"), b"").unwrap();
+        a.harness_dir = None;
+        assert_eq!(locate_harness(&a).unwrap(), a.work_dir.join("embree_bench"));
+    }
+
+    #[test]
     fn rows_pair_by_ray_set_and_api() {
         let emb: Vec<serde_json::Value> = [
             r#"{"engine":"embree","rays":"camera","api":"intersect1","mrays_per_s":10.0,"hit_fraction":0.5,"build_s":0.1}"#,
@@ -375,7 +421,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("photonlab-no-harness-{}", std::process::id()));
         let a = EmbreeArgs {
             harness: None,
-            harness_dir: dir.join("nowhere"),
+            harness_dir: Some(dir.join("nowhere")),
             scenes: dir.join("scenes"),
             work_dir: dir.join("work"),
             rays: 10,
@@ -386,6 +432,6 @@ mod tests {
             json: false,
         };
         let e = run(&a).unwrap_err().to_string();
-        assert!(e.contains("Embree harness not found") && e.contains("embree_bench.c"), "{e}");
+        assert!(e.contains("nowhere") && e.contains("--harness-dir"), "{e}");
     }
 }

@@ -415,6 +415,22 @@ fn list_cells(m: &Manifest, out: &Path, shard: Option<Shard>) -> Result<()> {
     Ok(())
 }
 
+/// The finished cells under `dir`, all or one shard's, in manifest order and without
+/// the bias/variance split (which needs every repeat: [`finalize`] adds it).
+pub fn finished_rows(dir: &Path, shard: Option<Shard>) -> Result<Vec<Row>> {
+    let (info, m) = read_info(dir)?;
+    let rows = m
+        .cells
+        .iter()
+        .filter(|c| shard.is_none_or(|s| s.takes(c.index)))
+        .filter_map(|c| {
+            let r = info.references.get(c.scene)?;
+            finished(dir, c, &r.key).map(|rec| Row { rec, split: None, repeats: m.repeats as usize })
+        })
+        .collect();
+    Ok(rows)
+}
+
 /// Combines the cells under `dir` (from one run or several shards) into
 /// `cells.csv`, `cells.jsonl`, plots and `summary.md`.
 pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
@@ -466,7 +482,7 @@ pub fn finalize(dir: &Path, quiet: bool) -> Result<()> {
     output::write_csv(&dir.join("cells.csv"), &rows)?;
     output::write_jsonl(&dir.join("cells.jsonl"), &rows)?;
     let stats = output::aggregate(&rows);
-    let plots = plots::make_plots(dir, &m, &stats)?;
+    let plots = plots::make_plots(dir, &m, &stats, &info.references)?;
     let sinfo = summary::SummaryInfo { manifest: &m, references: &info.references, plots: &plots };
     let md = summary::write_summary(&dir.join("summary.md"), &sinfo, &stats)?;
     html::write_report(dir, &sinfo, &rows, &md)?;

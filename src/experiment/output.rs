@@ -67,9 +67,21 @@ pub struct ConfigStats {
 
 /// Whether a bias² estimate is resolved: positive and above the noise of the mean
 /// image it was measured on (variance / repeats), which the unbiased estimator
-/// subtracts and which dominates it otherwise.
+/// subtracts and which dominates it otherwise. This is the relative split
+/// (`rel_bias2`), the one the summary and plots use.
 pub fn bias_resolved(b: &BiasVariance, repeats: usize) -> bool {
-    b.rel_bias2 > 0.0 && b.rel_bias2 > b.rel_variance / repeats.max(1) as f64
+    resolved(b.rel_bias2, b.rel_variance, repeats)
+}
+
+/// The same test on the unweighted split (`bias2` against `variance`). The two
+/// weightings resolve independently: bright pixels dominate `bias2`, dark ones
+/// `rel_bias2`, so one may be resolved while the other is still negative.
+pub fn abs_bias_resolved(b: &BiasVariance, repeats: usize) -> bool {
+    resolved(b.bias2, b.variance, repeats)
+}
+
+fn resolved(bias2: f64, variance: f64, repeats: usize) -> bool {
+    bias2 > 0.0 && bias2 > variance / repeats.max(1) as f64
 }
 
 /// Averages rows per configuration, in configuration order.
@@ -193,25 +205,38 @@ fn opt(v: Option<f64>) -> String {
     v.map_or(String::new(), |x| x.to_string())
 }
 
-/// A bias² estimate as a table value: empty unless resolved (never a negative number).
-fn bias_cell(r: &Row, f: fn(&BiasVariance) -> f64) -> String {
-    opt(r.split.filter(|b| bias_resolved(b, r.repeats)).map(|b| f(&b)))
+/// `bias2` and `rel_bias2` as table values: each empty unless resolved by its own
+/// test ([`abs_bias_resolved`], [`bias_resolved`]), so never a negative number.
+fn bias_values(split: Option<&BiasVariance>, repeats: usize) -> (Option<f64>, Option<f64>) {
+    match split {
+        Some(b) => (abs_bias_resolved(b, repeats).then_some(b.bias2), bias_resolved(b, repeats).then_some(b.rel_bias2)),
+        None => (None, None),
+    }
 }
 
-/// Why `bias2` is empty, or nothing.
+/// Why `bias2` or `rel_bias2` is empty, or nothing.
 pub fn bias_note(split: Option<&BiasVariance>, repeats: usize) -> String {
     match split {
         None if repeats < 2 => "one repeat: no bias/variance split (needs >= 2)".into(),
         None => "no split".into(),
-        Some(b) if bias_resolved(b, repeats) => String::new(),
-        Some(_) => format!("bias not resolved by {repeats} repeats (bias2 <= variance/repeats)"),
+        Some(b) => match (abs_bias_resolved(b, repeats), bias_resolved(b, repeats)) {
+            (true, true) => String::new(),
+            (false, true) => format!("bias2 not resolved by {repeats} repeats (bias2 <= variance/repeats); rel_bias2 is"),
+            (true, false) => format!("rel_bias2 not resolved by {repeats} repeats (rel_bias2 <= rel_variance/repeats); bias2 is"),
+            (false, false) => format!("bias not resolved by {repeats} repeats (bias2 <= variance/repeats)"),
+        },
     }
 }
 
-/// Writes `cells.csv` (with the `csv` crate: one schema for header and rows, RFC 4180
-/// quoting): the fixed columns, then every integrator counter seen (union, sorted),
-/// then every configuration key as `cfg_KEY`.
+/// Writes `cells.csv` (see [`csv_bytes`]).
 pub fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
+    write_atomic(path, &csv_bytes(rows)?)
+}
+
+/// The text of `cells.csv` (with the `csv` crate: one schema for header and rows, RFC
+/// 4180 quoting): the fixed columns, then every integrator counter seen (union,
+/// sorted), then every configuration key as `cfg_KEY`.
+pub fn csv_bytes(rows: &[Row]) -> Result<Vec<u8>> {
     let extra_keys: BTreeSet<&String> = rows.iter().flat_map(|r| r.rec.extra.keys()).collect();
     let cfg_json: Vec<serde_json::Map<String, Json>> =
         rows.iter().map(|r| serde_json::to_value(&r.rec.config).ok().and_then(|v| v.as_object().cloned()).unwrap_or_default()).collect();
@@ -248,9 +273,9 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
             opt(c.component.as_ref().map(|x| x.robust.relmse_trimmed)),
             opt(c.component.as_ref().map(|x| x.robust.smape)),
             opt(c.component.as_ref().map(|x| x.robust.worst_block)),
-            bias_cell(r, |b| b.bias2),
+            opt(bias_values(r.split.as_ref(), r.repeats).0),
             opt(r.split.map(|b| b.variance)),
-            bias_cell(r, |b| b.rel_bias2),
+            opt(bias_values(r.split.as_ref(), r.repeats).1),
             opt(r.split.map(|b| b.rel_variance)),
             bias_note(r.split.as_ref(), r.repeats),
             c.time_total_s.to_string(),
@@ -269,8 +294,7 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
         f.extend(cfg_keys.iter().map(|k| cfg.get(*k).map_or(String::new(), json_cell)));
         w.write_record(&f)?;
     }
-    let bytes = w.into_inner().context("cannot write cells.csv")?;
-    write_atomic(path, &bytes)
+    w.into_inner().context("cannot write cells.csv")
 }
 
 /// Writes `cells.jsonl`: each line the cell's record (as in `cells/STEM.json`) plus
@@ -282,10 +306,10 @@ pub fn write_jsonl(path: &Path, rows: &[Row]) -> Result<()> {
         let mut v = serde_json::to_value(&r.rec)?;
         if let Some(o) = v.as_object_mut() {
             let f = |g: fn(&BiasVariance) -> f64| r.split.as_ref().map_or(Json::Null, |b| Json::from(g(b)));
-            let resolved = r.split.is_some_and(|b| bias_resolved(&b, r.repeats));
-            o.insert("bias2".into(), if resolved { f(|b| b.bias2) } else { Json::Null });
+            let (bias2, rel_bias2) = bias_values(r.split.as_ref(), r.repeats);
+            o.insert("bias2".into(), bias2.map_or(Json::Null, Json::from));
             o.insert("variance".into(), f(|b| b.variance));
-            o.insert("rel_bias2".into(), if resolved { f(|b| b.rel_bias2) } else { Json::Null });
+            o.insert("rel_bias2".into(), rel_bias2.map_or(Json::Null, Json::from));
             o.insert("rel_variance".into(), f(|b| b.rel_variance));
             o.insert("bias_note".into(), Json::from(bias_note(r.split.as_ref(), r.repeats)));
         }
@@ -342,5 +366,50 @@ mod tests {
             assert_eq!(bias_note(Some(&s), 4).is_empty(), shown, "{b}");
         }
         assert!(bias_note(None, 1).contains("one repeat"));
+    }
+
+    /// quick.toml's first configuration: `rel_bias2` resolved while the unweighted
+    /// `bias2` estimate came out −1.66e-4 — `cells.csv` and `cells.jsonl` must show
+    /// the one and leave the other empty (null), never print it negative.
+    #[test]
+    fn a_negative_bias2_beside_a_resolved_rel_bias2_is_left_empty() {
+        let split = BiasVariance { bias2: -1.66e-4, variance: 2.8e-3, rel_bias2: 3.18e-3, rel_variance: 3.32e-3 };
+        let mut rec: CellRecord = serde_json::from_value(serde_json::json!({
+            "cell": "c_r0", "index": 0, "config_index": 0, "label": "c", "group": "c", "repeat": 0, "seed": 0,
+            "values": {}, "width": 2, "height": 2, "metrics": {"mse": 0.0, "rmse": 0.0, "relmse": 0.0, "mae": 0.0},
+            "accel_build_s": 0.0, "preprocess_s": 0.0, "render_s": 0.0, "time_total_s": 0.0, "camera_rays": 0,
+            "shadow_rays": 0, "threads": 1, "accel_bytes": 0, "nonfinite_samples": 0, "extra": {},
+            "config": {}, "reference_key": "k", "version": "0"
+        }))
+        .unwrap();
+        let rows: Vec<Row> = (0..2)
+            .map(|i| {
+                rec.repeat = i;
+                rec.cell = format!("c_r{i}");
+                Row { rec: rec.clone(), split: Some(split), repeats: 2 }
+            })
+            .collect();
+        let text = String::from_utf8(csv_bytes(&rows).unwrap()).unwrap();
+        let mut rd = csv::Reader::from_reader(text.as_bytes());
+        let header = rd.headers().unwrap().clone();
+        let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+        for rec in rd.records() {
+            let rec = rec.unwrap();
+            assert_eq!(&rec[col("bias2")], "", "{text}");
+            assert_eq!(rec[col("rel_bias2")].parse::<f64>().unwrap(), 3.18e-3);
+            assert_eq!(rec[col("variance")].parse::<f64>().unwrap(), 2.8e-3);
+            assert!(rec[col("bias_note")].starts_with("bias2 not resolved"), "{}", &rec[col("bias_note")]);
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cells.jsonl");
+        write_jsonl(&p, &rows).unwrap();
+        for line in std::fs::read_to_string(&p).unwrap().lines() {
+            let v: Json = serde_json::from_str(line).unwrap();
+            assert!(v["bias2"].is_null() && v["rel_bias2"].as_f64() == Some(3.18e-3), "{line}");
+        }
+        // Both resolved: both printed, no note.
+        let both = BiasVariance { bias2: 2e-3, ..split };
+        assert_eq!(bias_values(Some(&both), 2), (Some(2e-3), Some(3.18e-3)));
+        assert_eq!(bias_note(Some(&both), 2), "");
     }
 }

@@ -1,10 +1,15 @@
 //! Plots of an experiment (PNG + SVG under `plots/`): error vs time, error vs each
 //! numeric axis with fitted convergence slopes, bias/variance bars and phase times.
+//! The error plots draw each reference's own noise (relative MSE from its two halves)
+//! as a band: a measured error cannot fall below it, so a curve that meets it has
+//! reached what the reference resolves, not stopped converging.
 
+use super::RefInfo;
 use super::cell::BiasVariance;
 use super::manifest::Manifest;
 use super::output::ConfigStats;
-use crate::plot::{LinePlot, Series, StackedBars, bar_plot, line_plot, log_log_slope};
+use super::output::sig;
+use crate::plot::{Band, LinePlot, Series, StackedBars, bar_plot, line_plot_with_bands, log_log_slope};
 use anyhow::Result;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -64,10 +69,22 @@ fn disjoint_phases(c: &ConfigStats) -> Vec<&String> {
     out
 }
 
+/// The noise floor of each reference whose noise is known: a band from the bottom of
+/// the axis to its relative MSE.
+pub fn noise_bands(refs: &[RefInfo]) -> Vec<Band> {
+    refs.iter()
+        .filter_map(|r| {
+            let n = r.noise_relmse.filter(|n| n.is_finite() && *n > 0.0)?;
+            Some(Band { name: format!("noise of the {} reference (relMSE {})", r.scene, sig(n)), lo: 0.0, hi: n })
+        })
+        .collect()
+}
+
 /// Draws every plot the data supports; returns (title, relative PNG path) pairs.
-pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec<(String, String)>> {
+pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats], refs: &[RefInfo]) -> Result<Vec<(String, String)>> {
     let pdir = dir.join("plots");
     let mut out = Vec::new();
+    let bands = noise_bands(refs);
 
     // Error vs time, one line per strategy (points along the numeric axes).
     let mut groups: BTreeMap<String, Vec<(f64, f64)>> = BTreeMap::new();
@@ -95,7 +112,7 @@ pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec
         log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.0))),
         log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.1))),
     );
-    line_plot(
+    line_plot_with_bands(
         &pdir.join("error_vs_time"),
         &LinePlot {
             title: format!("{}: {title}", m.name),
@@ -105,6 +122,7 @@ pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec
             log_y,
             series,
         },
+        &bands,
     )?;
     out.push((title, "plots/error_vs_time.png".into()));
 
@@ -144,7 +162,7 @@ pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec
         let log_x = positive && log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
         let log_y = log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
         let stem = format!("error_vs_{axis}");
-        line_plot(
+        line_plot_with_bands(
             &pdir.join(&stem),
             &LinePlot {
                 title: format!("{}: {title} (log–log slope in legend)", m.name),
@@ -154,6 +172,7 @@ pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats]) -> Result<Vec
                 log_y,
                 series,
             },
+            &bands,
         )?;
         out.push((title, format!("plots/{stem}.png")));
     }
@@ -254,5 +273,72 @@ mod tests {
         let mut got: Vec<&str> = disjoint_phases(&c).into_iter().map(String::as_str).collect();
         got.sort();
         assert_eq!(got, ["photon_pass_s", "precompute_s", "prefill_s"]);
+    }
+
+    fn config(i: usize, group: &str, time_s: f64, relmse: f64) -> ConfigStats {
+        ConfigStats {
+            config_index: i,
+            label: format!("{group} {i}"),
+            group: group.into(),
+            values: BTreeMap::new(),
+            first_stem: format!("c{i}_r0"),
+            repeats: 1,
+            rmse: relmse.sqrt(),
+            relmse,
+            mae: 0.0,
+            time_s,
+            accel_build_s: 0.0,
+            preprocess_s: 0.0,
+            render_s: time_s,
+            rays: 0.0,
+            extra: BTreeMap::new(),
+            split: None,
+            robust: Default::default(),
+            reference_key: "k".into(),
+            component: None,
+        }
+    }
+
+    /// A curve that flattens at the reference's noise (as `sppm` on cornell-glass in
+    /// the consistency study): the floor is drawn as a band, labelled with its scene
+    /// and level, and the y axis reaches down to it even when every point is above.
+    #[test]
+    fn error_plots_draw_the_reference_noise_floor_as_a_band() {
+        let tmp = tempfile::tempdir().unwrap();
+        let m = Manifest::parse(
+            "scene = \"cornell\"\nresolution = [8, 8]\n[reference]\nspp = 4\n[base]\nspp = 1\n",
+            Path::new("m.toml"),
+            Path::new("."),
+        )
+        .unwrap();
+        let stats: Vec<ConfigStats> =
+            [(1.0, 4e-2), (2.0, 1e-2), (4.0, 3e-3), (8.0, 2.1e-3)].iter().enumerate().map(|(i, &(t, e))| config(i, "sppm", t, e)).collect();
+        let svg_of = |refs: &[RefInfo]| {
+            let d = tmp.path().join(format!("run{}", refs.len()));
+            make_plots(&d, &m, &stats, refs).unwrap();
+            std::fs::read_to_string(d.join("plots/error_vs_time.svg")).unwrap()
+        };
+        let reference = |scene: &str, noise: Option<f64>| RefInfo {
+            scene: scene.into(),
+            key: "k".into(),
+            description: String::new(),
+            file: String::new(),
+            noise_relmse: noise,
+            component_file: None,
+            component_noise_relmse: None,
+        };
+        let without = svg_of(&[]);
+        let with = svg_of(&[reference("cornell-glass", Some(2e-3)), reference("unknown", None)]);
+        assert!(!without.contains("noise of the"));
+        assert!(with.contains("noise of the cornell-glass reference (relMSE 0.00200)"), "legend entry missing");
+        assert!(!with.contains("noise of the unknown"), "a reference without a noise estimate has no band");
+        // The band itself: a translucent filled rectangle (none without it).
+        let translucent =
+            |s: &str| s.split("<rect").filter(|r| r.contains("fill-opacity=\"0.18\"") || r.contains("opacity=\"0.18\"")).count();
+        assert!(translucent(&with) >= 1 && translucent(&without) == 0, "band rectangle not drawn:\n{with}");
+        // A floor far below every point still shows: the axis reaches down to it.
+        let low = svg_of(&[reference("low", Some(1e-5)), reference("b", Some(1e-5)), reference("c", Some(1e-5))]);
+        assert!(translucent(&low) >= 1, "a floor below the points is still drawn");
+        assert_eq!(noise_bands(&[reference("x", Some(0.0)), reference("y", Some(f64::NAN))]).len(), 0);
     }
 }

@@ -114,6 +114,8 @@ impl PpmIntegrator {
             t_pre += t0.elapsed().as_secs_f64();
             let sampler = crate::sampler::make(&pcfg.sampler, pcfg.seed, Some(pcfg.spp as u64))?;
             let (img, st) = render(world, &integrator, sampler.as_ref(), pcfg.spp, true);
+            // A cancelled pass is incomplete: never add it to the sums or a checkpoint.
+            crate::progress::check_cancel()?;
             t_render += st.seconds;
             stats.traversal.add(&st.traversal);
             stats.nonfinite_samples += st.nonfinite_samples;

@@ -170,9 +170,10 @@ impl Budget {
     pub fn elapsed(&self) -> f64 {
         self.start.elapsed().as_secs_f64()
     }
-    /// True when another pass may start after `done` passes (the first always runs).
+    /// True when another pass may start after `done` passes (the first always runs),
+    /// unless the render was cancelled (`progress::cancel`).
     pub fn more(&self, done: u32) -> bool {
-        done < self.max_passes && (done == 0 || self.time_limit.is_none_or(|t| self.elapsed() < t))
+        done < self.max_passes && (done == 0 || self.time_limit.is_none_or(|t| self.elapsed() < t)) && !crate::progress::cancelled()
     }
 }
 

@@ -47,6 +47,11 @@ pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler,
             let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
             for y in y0..y1 {
                 for x in x0..x1 {
+                    if crate::progress::cancelled() {
+                        // Stopped (`progress::cancel`): the pipeline discards the image.
+                        out.push(Color::ZERO);
+                        continue;
+                    }
                     let stream = y as u64 * w as u64 + x as u64;
                     let mut sum = DVec3::ZERO;
                     for i in 0..spp {

@@ -311,7 +311,7 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
     let mut emitted = 0u64;
     let mut rays = TraversalStats::default();
     let pb = crate::progress::progress_bar(limit.min((s.global_photons + s.caustic_photons) as u64 * 4), quiet, "photons");
-    while emitted < limit && (s.fixed_emit.is_some() || !(global_done && caustic_done)) {
+    while emitted < limit && (s.fixed_emit.is_some() || !(global_done && caustic_done)) && !crate::progress::cancelled() {
         let n = BATCH.min(limit - emitted);
         let results: Vec<(Vec<RawPhoton>, TraversalStats)> = (0..n as usize)
             .into_par_iter()
