@@ -9,7 +9,7 @@
 //! few manifest extensions (a `builtin` / `file` base scene, `fit_height`, `download`).
 
 use crate::scene::Scene;
-use crate::scene::loader::{Dialect, SceneBase, SceneDesc, TomlSource};
+use crate::scene::loader::{Dialect, SceneBase, SceneDesc, TomlSource, read_scene_file};
 use anyhow::{Result, anyhow, bail};
 use std::path::Path;
 use toml::Spanned;
@@ -103,16 +103,30 @@ impl SceneSpec {
 
     /// Checks that every file the scene needs exists (before anything renders).
     pub fn check_files(&self) -> Result<()> {
-        if let Some(SceneBase::File(p)) = &self.desc.base
-            && !p.is_file()
-        {
-            bail!("{}: scene file {} not found", self.at, p.display());
+        let hint =
+            |d: &Option<String>| d.as_ref().map(|d| format!(" — download it from {d} (see docs/experiments.md)")).unwrap_or_default();
+        if let Some(SceneBase::File(p)) = &self.desc.base {
+            if !p.is_file() {
+                bail!("{}: scene file {} not found", self.at, p.display());
+            }
+            // The base file's own models (e.g. public models kept outside the repository).
+            let base = read_scene_file(p)?;
+            for m in &base.meshes {
+                if !m.obj.is_file() {
+                    let h = hint(&self.desc.base_download);
+                    bail!(
+                        "{}: scene file {}: model {} not found{h}; set its path in the scene file's `obj`",
+                        self.at,
+                        p.display(),
+                        m.obj.display()
+                    );
+                }
+            }
         }
         for m in &self.desc.meshes {
             if !m.obj.is_file() {
-                let hint =
-                    m.download.as_ref().map(|d| format!(" — download it from {d} (see README, \"## Experiments\")")).unwrap_or_default();
-                bail!("{}: model {} not found{hint}; set its path in `obj`", m.at, m.obj.display());
+                let h = hint(&m.download);
+                bail!("{}: model {} not found{h}; set its path in `obj`", m.at, m.obj.display());
             }
         }
         Ok(())
@@ -166,5 +180,30 @@ mod tests {
             parse("[scene]\nbuiltin = \"cornell\"\n\n[[scene.mesh]]\nobj = \"nowhere.obj\"\ndownload = \"https://example.org\"\n").unwrap();
         let x = format!("{:#}", s[0].load([8, 8]).unwrap_err());
         assert!(x.starts_with("m.toml:4:") && x.contains("nowhere.obj") && x.contains("https://example.org"), "{x}");
+    }
+
+    #[test]
+    fn a_scene_files_missing_model_is_found_before_rendering_with_the_entrys_download_hint() {
+        let d = tempfile::tempdir().unwrap();
+        let scene =
+            "[camera]\neye = [0, 1, 4]\nlook_at = [0, 1, 0]\nfov_y_deg = 40\nresolution = [8, 8]\n\n[[mesh]]\nobj = \"absent/model.obj\"\n";
+        std::fs::write(d.path().join("s.toml"), scene).unwrap();
+        std::fs::write(d.path().join("t.toml"), scene).unwrap();
+        let m = "scene = [{ file = \"s.toml\", download = \"https://example.org/models\" }, \"t.toml\"]\n";
+        let e = |i: usize| {
+            let s = parse_scenes(m, Path::new("m.toml"), d.path()).unwrap();
+            format!("{:#}", s[i].check_files().unwrap_err())
+        };
+        let x = e(0);
+        assert!(
+            x.starts_with("m.toml:1:") && x.contains("absent/model.obj") && x.contains("download it from https://example.org/models"),
+            "{x}"
+        );
+        // Without a hint the error still names the scene file and the model.
+        let x = e(1);
+        assert!(x.contains("t.toml") && x.contains("absent/model.obj") && x.contains("not found") && !x.contains("download"), "{x}");
+        // `download` needs a `file` base; a scene file may not use it.
+        let x = format!("{:#}", parse("[scene]\nbuiltin = \"cornell\"\ndownload = \"x\"\n").unwrap_err());
+        assert!(x.starts_with("m.toml:3:") && x.contains("`download`"), "{x}");
     }
 }

@@ -30,7 +30,8 @@
 //!   `H`; `rotate_y_deg` and `translate` then apply as usual (so `translate` is where
 //!   the bottom centre goes). For models whose units and origin depend on where they
 //!   were downloaded from.
-//! * `[[mesh]]` `download = "..."`: where to get a missing model (shown in the error).
+//! * `[[mesh]]` `download = "..."`: where to get a missing model (shown in the error);
+//!   `download` beside `file` says the same for the base scene file's models.
 //!
 //! Every error is one line naming the scene (or manifest) file, with `line:column`
 //! where the TOML parser or the value's position tells it, and the OBJ/MTL
@@ -63,6 +64,8 @@ struct SceneToml {
     builtin: Option<Spanned<String>>,
     /// Extension: a scene file as base scene.
     file: Option<Spanned<String>>,
+    /// Extension: where to get the base scene file's models when they are missing.
+    download: Option<Spanned<String>>,
 }
 
 fn default_up() -> [f32; 3] {
@@ -390,6 +393,8 @@ pub struct SceneDesc {
     pub meshes: Vec<MeshDesc>,
     /// Non-geometric lights (after the base scene's).
     pub lights: Vec<LightDesc>,
+    /// Extension: where to get the base scene file's models when they are missing.
+    pub base_download: Option<String>,
     /// The file (scene file) or `file:line` of the table (inline), for messages about
     /// the whole scene.
     pub at: String,
@@ -406,7 +411,7 @@ fn not_in_file<T>(src: &TomlSource, key: &str, v: &Option<Spanned<T>>) -> Result
 impl SceneDesc {
     /// A description that is just a base scene (a manifest's `scene = "NAME"`).
     pub fn of_base(base: SceneBase, at: String) -> SceneDesc {
-        SceneDesc { base: Some(base), camera: None, meshes: vec![], lights: vec![], at }
+        SceneDesc { base: Some(base), camera: None, meshes: vec![], lights: vec![], base_download: None, at }
     }
 
     /// Reads a scene table from an already-parsed TOML value: `src` is the text its
@@ -422,6 +427,10 @@ impl SceneDesc {
         if dialect == Dialect::File {
             not_in_file(&src, "builtin", &doc.builtin)?;
             not_in_file(&src, "file", &doc.file)?;
+            not_in_file(&src, "download", &doc.download)?;
+        }
+        if let (Some(d), None) = (&doc.download, &doc.file) {
+            bail!("{}: [scene]: `download` names where a base scene file's models come from; give it with `file`", src.at(d));
         }
         let base = match (&doc.builtin, &doc.file) {
             (Some(_), Some(f)) => bail!("{}: [scene]: give `builtin` or `file`, not both", src.at(f)),
@@ -445,7 +454,8 @@ impl SceneDesc {
         for (i, l) in doc.light.iter().enumerate() {
             lights.push(light_desc(l.get_ref()).map_err(|e| anyhow!("{}: [[{p}light]] {}: {e}", src.at(l), i + 1))?);
         }
-        Ok(SceneDesc { base, camera, meshes, lights, at })
+        let base_download = doc.download.as_ref().map(|d| d.get_ref().clone());
+        Ok(SceneDesc { base, camera, meshes, lights, base_download, at })
     }
 
     /// Builds the scene: the base scene (if any), then the camera, the meshes (read
@@ -589,12 +599,17 @@ impl MeshDesc {
 ///
 /// Non-fatal remarks (undefined materials, negative scales, dropped zero-area
 /// triangles, ignored MTL statements) end up in `scene.warnings`.
-pub fn load_scene(path: &Path) -> Result<Scene> {
+/// Reads and checks a scene file's description without reading its meshes.
+pub fn read_scene_file(path: &Path) -> Result<SceneDesc> {
     let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: cannot read scene file: {e}", path.display()))?;
     let src = TomlSource { file: path, text: &text };
     let doc = DeTable::parse(&text).map_err(|e| src.error(&e))?;
     let value = Spanned::new(doc.span(), DeValue::Table(doc.into_inner()));
-    let desc = SceneDesc::from_toml(value, src, path.parent().unwrap_or(Path::new("")), Dialect::File)?;
+    SceneDesc::from_toml(value, src, path.parent().unwrap_or(Path::new("")), Dialect::File)
+}
+
+pub fn load_scene(path: &Path) -> Result<Scene> {
+    let desc = read_scene_file(path)?;
     let name = path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
     let mut scene = desc.build(&name, None)?;
     scene.source = Some(path.to_path_buf());
