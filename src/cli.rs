@@ -56,7 +56,7 @@ pub enum Command {
     },
     /// List every strategy family, plug-in and parameter with its default (from the plug-ins' own declarations).
     Plugins {
-        /// Markdown tables (the README's parameter section is this output).
+        /// Markdown tables (docs/plugins.md is this output).
         #[arg(long)]
         markdown: bool,
     },

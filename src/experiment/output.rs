@@ -1,6 +1,6 @@
 //! Tables of an experiment: `cells.csv` and `cells.jsonl` (one row per cell and
 //! repeat), and the per-configuration means the summary, plots and report use.
-//! Columns are documented in the README ("## Experiments").
+//! Columns are documented in docs/experiments.md ("cells.csv").
 
 use super::cell::{BiasVariance, CellRecord};
 use super::metrics::{ComponentMetrics, RobustMetrics};

@@ -171,7 +171,7 @@ pub fn write_summary(path: &Path, info: &SummaryInfo, stats: &[ConfigStats]) -> 
                 let _ = writeln!(
                     s,
                     "- Reference `{}`: its own noise is relMSE **{}** (from two halves of its samples a, b: \
-                     mean((a − b)² / (ref² + 0.01)) / 4; see the README for low-discrepancy samplers). A cell's \
+                     mean((a − b)² / (ref² + 0.01)) / 4; see docs/experiments.md for low-discrepancy samplers). A cell's \
                      measured relMSE includes it, so differences below it are not resolved.",
                     r.scene,
                     sig(n)

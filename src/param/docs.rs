@@ -1,5 +1,5 @@
 //! The catalogue of plug-ins and their parameters, as text or Markdown
-//! (`photonlab plugins [--markdown]`; the README's tables are that output).
+//! (`photonlab plugins [--markdown]`; docs/plugins.md is that output).
 
 use super::{ParamDef, one_line};
 use std::fmt::Write;
