@@ -327,7 +327,8 @@ mod tests {
         let mut floor = Vec::new();
         for x in (25..=525).step_by(50) {
             for z in (25..=525).step_by(50) {
-                let down = crate::geometry::Ray::new(Vec3::new(x as f32, 300.0, z as f32), -Vec3::Y);
+                // From just under the ceiling: points under the blocks are not floor hits.
+                let down = crate::geometry::Ray::new(Vec3::new(x as f32, 540.0, z as f32), -Vec3::Y);
                 if let Some(it) = world.intersect(&down, &mut TraversalStats::default())
                     && it.p.y.abs() < 1.0
                     && it.sp.ng.y > 0.99
@@ -337,9 +338,15 @@ mod tests {
             }
         }
         assert!(floor.len() > 50, "{} floor points", floor.len());
+        // Relative gradients are steepest where E is small: only points at least half
+        // as bright as the median compete.
+        let mut es: Vec<f32> = floor.iter().map(|f| crate::math::mean(f.1.irradiance)).collect();
+        es.sort_by(f32::total_cmp);
+        let floor_e = 0.5 * es[es.len() / 2];
         let steepest = |g: &dyn Fn(&HemisphereResult) -> Vec3| {
             let rel = |h: &HemisphereResult| g(h).length() / crate::math::mean(h.irradiance).max(1e-9);
-            floor.iter().max_by(|a, b| rel(&a.1).total_cmp(&rel(&b.1))).map(|(it, _)| *it).unwrap()
+            let lit = floor.iter().filter(|f| crate::math::mean(f.1.irradiance) >= floor_e);
+            lit.max_by(|a, b| rel(&a.1).total_cmp(&rel(&b.1))).map(|(it, _)| *it).unwrap()
         };
         // Translation: E(p ± δ·d) along the gradient and across it.
         let delta = 4.0f32;
