@@ -209,7 +209,9 @@ impl Part {
         // A sum of `len` samples below MAX_SAMPLE each; larger values would let the
         // sums of the parts overflow (wrap) instead of adding exactly.
         let limit = header.range.len() as i128 * max_fixed();
-        if let Some((i, c)) = sums.iter().enumerate().find_map(|(i, s)| s.iter().position(|v| v.unsigned_abs() > limit as u128).map(|c| (i, c))) {
+        if let Some((i, c)) =
+            sums.iter().enumerate().find_map(|(i, s)| s.iter().position(|v| v.unsigned_abs() > limit as u128).map(|c| (i, c)))
+        {
             let (x, y) = (i % header.width as usize, i / header.width as usize);
             return Err(bad(format!(
                 "pixel ({x}, {y}) channel {c}: sum {} is larger than {} samples can give (|sample| < {MAX_SAMPLE:e})",

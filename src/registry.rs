@@ -9,8 +9,8 @@ use crate::accel::{Accel, bvh::Bvh, bvh4::Bvh4, bvh8::Bvh8, bvh8q::Bvh8q, linear
 use crate::config::{COMMON, RenderConfig};
 use crate::integrator::photon::gather::{GatherParams, irradiance_cache::CacheSettings, precomputed::PrecomputedParams};
 use crate::integrator::photon::{DirectParams, PhotonIntegrator, PhotonParams};
-use crate::integrator::progressive::ProgressiveParams;
 use crate::integrator::ppm::PpmParams;
+use crate::integrator::progressive::ProgressiveParams;
 use crate::integrator::sppm::SppmParams;
 use crate::integrator::{Integrator, path::PathIntegrator, ppm::PpmIntegrator, sppm::SppmIntegrator};
 use crate::param::Reader;

@@ -33,7 +33,22 @@ fn corrupt_parts_are_named_errors() {
     let d = tmp.path();
     for (range, out) in [("0..2", "a"), ("2..4", "b")] {
         let o = photonlab(
-            &["render", "--builtin", "cornell", "--integrator", "path", "--spp", "4", "--resolution", "6x4", "--quiet", "--sample-range", range, "-o", out],
+            &[
+                "render",
+                "--builtin",
+                "cornell",
+                "--integrator",
+                "path",
+                "--spp",
+                "4",
+                "--resolution",
+                "6x4",
+                "--quiet",
+                "--sample-range",
+                range,
+                "-o",
+                out,
+            ],
             d,
         );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

@@ -171,8 +171,7 @@ impl PpmIntegrator {
             rc2 = rc2.map(|v| next_radius2(v, i, alpha));
             if self.prog.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
                 let bits = |v: Option<f64>| v.unwrap_or(0.0).to_bits();
-                let state: State =
-                    (sum.iter().map(|v| v.to_array().map(f64::to_bits)).collect(), bits(r2), bits(rc2), bits(r2_first));
+                let state: State = (sum.iter().map(|v| v.to_array().map(f64::to_bits)).collect(), bits(r2), bits(rc2), bits(r2_first));
                 save_checkpoint(&self.cfg, &self.prog, world, pass, &state)?;
             }
         }

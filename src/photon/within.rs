@@ -63,8 +63,11 @@ mod tests {
         let stored: Vec<Vec3> = (0..tree.len()).map(|i| tree.position(i)).collect();
         let grid = PhotonGrid::build_photons(&stored, &tree.points, 50);
         let mut heap = KnnHeap::default();
-        for (p, n, r) in [(Vec3::new(0.3, 0.0, 0.4), Vec3::Y, 0.08f32), (Vec3::new(0.45, 0.0, 0.5), Vec3::Y, 0.2), (Vec3::new(0.5, 0.3, 0.6), -Vec3::X, 0.15)]
-        {
+        for (p, n, r) in [
+            (Vec3::new(0.3, 0.0, 0.4), Vec3::Y, 0.08f32),
+            (Vec3::new(0.45, 0.0, 0.5), Vec3::Y, 0.2),
+            (Vec3::new(0.5, 0.3, 0.6), -Vec3::X, 0.15),
+        ] {
             let prm = estimate_params(r, Filter::Cone, 0.25);
             assert!(is_radius_bounded(&prm) && !is_radius_bounded(&EstimateParams::new(100, r, Filter::Cone, 0.25)));
             let thick = prm.disc * r;

@@ -290,8 +290,9 @@ mod tests {
     }
 
     /// The gradients point the way the gathered irradiance changes: on the Cornell
-    /// box's floor, at the points of a grid where the gradients are steepest, the
-    /// first-order change they predict for a step of the position (±4 mm along the
+    /// box's floor, at the points of a grid where the gradients are steepest (away
+    /// from walls and blocks), the first-order change they predict for a step of the
+    /// position (±10 mm along the
     /// translational gradient and across it) and a tilt of the normal (±3° about the
     /// rotational gradient's axis and across it) agrees with the central finite
     /// difference of gathers at the displaced points — same photon map and the same
@@ -310,8 +311,7 @@ mod tests {
             .with("photons", 200_000)
             .with("caustic_photons", 0);
         let r = crate::param::Reader::new(&cfg.params);
-        let mut pi =
-            crate::integrator::photon::PhotonIntegrator::new(&cfg, &r, crate::registry::make_rr(&cfg.rr).unwrap(), true).unwrap();
+        let mut pi = crate::integrator::photon::PhotonIntegrator::new(&cfg, &r, crate::registry::make_rr(&cfg.rr).unwrap(), true).unwrap();
         crate::integrator::Integrator::preprocess(&mut pi, &world).unwrap();
         let ctx = pi.context().unwrap();
         let wo = Vec3::Y;
@@ -345,11 +345,13 @@ mod tests {
         let floor_e = 0.5 * es[es.len() / 2];
         let steepest = |g: &dyn Fn(&HemisphereResult) -> Vec3| {
             let rel = |h: &HemisphereResult| g(h).length() / crate::math::mean(h.irradiance).max(1e-9);
-            let lit = floor.iter().filter(|f| crate::math::mean(f.1.irradiance) >= floor_e);
+            // Away from walls and blocks (no ray above 10° hits anything within 80 mm), where
+            // E is smooth over the steps: at a contact a step crosses the shadow's edge.
+            let lit = floor.iter().filter(|f| crate::math::mean(f.1.irradiance) >= floor_e && f.1.min_distance > 80.0);
             lit.max_by(|a, b| rel(&a.1).total_cmp(&rel(&b.1))).map(|(it, _)| *it).unwrap()
         };
         // Translation: E(p ± δ·d) along the gradient and across it.
-        let delta = 4.0f32;
+        let delta = 10.0f32;
         let it = steepest(&|h| mean(&h.trans_grad) * Vec3::new(1.0, 0.0, 1.0));
         let base = gather_at(&it, 4096);
         let e0 = crate::math::mean(base.irradiance) as f64;
@@ -360,7 +362,7 @@ mod tests {
             let pred = (mean(&base.trans_grad).dot(d) * delta) as f64;
             eprintln!("translation at {} {name} the gradient: finite difference {fd:.6}, gradient {pred:.6} (E {e0:.5})", it.p);
             if name == "along" {
-                assert!(fd.abs() > 0.01 * e0, "the steepest point has too small a gradient: {fd} of {e0}");
+                assert!(fd.abs() > 0.005 * e0, "the steepest point has too small a gradient: {fd} of {e0}");
             }
             assert!((pred - fd).abs() <= 0.35 * fd.abs() + 0.003 * e0, "translational gradient {name}: {pred} against {fd}");
         }
@@ -380,7 +382,7 @@ mod tests {
             let pred = (mean(&base.rot_grad).dot(n.cross(tilted(1.0)))) as f64;
             eprintln!("tilt at {} {name} the gradient's axis: finite difference {fd:.6}, gradient {pred:.6} (E {e0:.5})", it.p);
             if name == "about" {
-                assert!(fd.abs() > 0.01 * e0, "the steepest point has too small a rotational gradient: {fd} of {e0}");
+                assert!(fd.abs() > 0.005 * e0, "the steepest point has too small a rotational gradient: {fd} of {e0}");
             }
             assert!((pred - fd).abs() <= 0.35 * fd.abs() + 0.003 * e0, "rotational gradient {name}: {pred} against {fd}");
         }

@@ -501,7 +501,8 @@ mod tests {
             }
         }
         for g in 0..max_spec {
-            for (name, j) in [("x", &(|k: &PrefillKeys| k.jitter.0) as &dyn Fn(&PrefillKeys) -> f32), ("y", &|k: &PrefillKeys| k.jitter.1)] {
+            for (name, j) in [("x", &(|k: &PrefillKeys| k.jitter.0) as &dyn Fn(&PrefillKeys) -> f32), ("y", &|k: &PrefillKeys| k.jitter.1)]
+            {
                 let c = corr(j, &|k| k.gather.uniform(g));
                 assert!(c.abs() < limit, "jitter {name} and gather dimension {g}: correlation {c}");
                 let c = corr(j, &|k| k.path.uniform(g));
