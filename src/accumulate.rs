@@ -120,6 +120,49 @@ pub struct PartHeader {
     pub config: serde_json::Value,
 }
 
+/// The largest fixed-point value of one sample: [`MAX_SAMPLE`] in units of 2^−FRAC_BITS.
+fn max_fixed() -> i128 {
+    (MAX_SAMPLE as i128) << FRAC_BITS
+}
+
+impl PartHeader {
+    /// Checks the header against itself and against `data_len`, the bytes of sums that
+    /// follow it; the message names the field.
+    fn check(&self, data_len: usize) -> std::result::Result<(), String> {
+        if self.width == 0 || self.height == 0 {
+            return Err(format!("image size {}x{} (width and height must be positive)", self.width, self.height));
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            return Err(format!("spp {} (must lie in 1..={MAX_SPP}, what the exact sums hold)", self.spp));
+        }
+        if self.range.is_empty() || self.range.end > self.spp {
+            return Err(format!("sample range {} is not a non-empty range inside the render's 0..{}", self.range, self.spp));
+        }
+        let pixels = self.width as u64 * self.height as u64;
+        if self.nonfinite_samples > pixels * self.range.len() as u64 {
+            return Err(format!(
+                "nonfinite_samples {} is more than the {} samples of {} pixels",
+                self.nonfinite_samples,
+                self.range.len(),
+                pixels
+            ));
+        }
+        if !(self.seconds >= 0.0) {
+            return Err(format!("seconds {} (must be at least 0)", self.seconds));
+        }
+        let want = usize::try_from(pixels).ok().and_then(|p| p.checked_mul(48));
+        if want != Some(data_len) {
+            return Err(format!(
+                "{data_len} bytes of sums for {}x{} pixels (expected {}: 3 × 16 bytes per pixel)",
+                self.width,
+                self.height,
+                pixels as u128 * 48
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Exact per-pixel sums of a sample range.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Part {
@@ -157,23 +200,25 @@ impl Part {
         let body = MAGIC.len() + 8;
         let head = bytes.get(body..body.saturating_add(n)).ok_or_else(|| bad("truncated header".into()))?;
         let header: PartHeader = serde_json::from_slice(head).map_err(|e| bad(format!("header: {e}")))?;
-        let pixels = header.width as usize * header.height as usize;
         let data = &bytes[body + n..];
-        if Some(data.len()) != pixels.checked_mul(48) || header.range.is_empty() || header.range.end > header.spp {
-            return Err(bad(format!(
-                "{} bytes of sums for {}x{} pixels (expected {}), samples {} of {}",
-                data.len(),
-                header.width,
-                header.height,
-                pixels.saturating_mul(48),
-                header.range,
-                header.spp
-            )));
-        }
-        let sums = data
+        header.check(data.len()).map_err(bad)?;
+        let sums: Vec<[i128; 3]> = data
             .chunks_exact(48)
             .map(|c| std::array::from_fn(|k| i128::from_le_bytes(c[k * 16..k * 16 + 16].try_into().unwrap_or_default())))
             .collect();
+        // A sum of `len` samples below MAX_SAMPLE each; larger values would let the
+        // sums of the parts overflow (wrap) instead of adding exactly.
+        let limit = header.range.len() as i128 * max_fixed();
+        if let Some((i, c)) =
+            sums.iter().enumerate().find_map(|(i, s)| s.iter().position(|v| v.unsigned_abs() > limit as u128).map(|c| (i, c)))
+        {
+            let (x, y) = (i % header.width as usize, i / header.width as usize);
+            return Err(bad(format!(
+                "pixel ({x}, {y}) channel {c}: sum {} is larger than {} samples can give (|sample| < {MAX_SAMPLE:e})",
+                sums[i][c] as f64 * (-FRAC_BITS as f64).exp2(),
+                header.range.len()
+            )));
+        }
         Ok(Part { header, sums })
     }
 }
@@ -638,6 +683,51 @@ mod tests {
         std::fs::write(&p, &bytes[..bytes.len() - 5]).unwrap();
         let e = format!("{:#}", Part::read(&p).unwrap_err());
         assert!(e.contains("a.psum") && e.contains("bytes of sums"), "{e}");
+        // Corrupt headers and sums, each named.
+        let raw = |head: &serde_json::Value, data: &[u8], len: Option<u64>| {
+            let h = serde_json::to_vec(head).unwrap();
+            let mut b = MAGIC.to_vec();
+            b.extend_from_slice(&len.unwrap_or(h.len() as u64).to_le_bytes());
+            b.extend_from_slice(&h);
+            b.extend_from_slice(data);
+            b
+        };
+        let good = serde_json::to_value(&ps[0].1.header).unwrap();
+        let data = &bytes[bytes.len() - 8 * 8 * 48..];
+        let with = |k: &str, v: serde_json::Value| {
+            let mut h = good.clone();
+            h[k] = v;
+            h
+        };
+        let mut big = data.to_vec();
+        big[5 * 48 + 16..5 * 48 + 32].copy_from_slice(&(3 * max_fixed()).to_le_bytes());
+        let mut wrap = data.to_vec();
+        wrap[48..64].copy_from_slice(&i128::MIN.to_le_bytes());
+        let cases: Vec<(Vec<u8>, &str)> = vec![
+            (raw(&good, data, None), ""),
+            (raw(&with("width", 0.into()), data, None), "image size 0x8"),
+            (raw(&with("spp", (MAX_SPP as u64 + 1).into()), data, None), "spp 67108865"),
+            (raw(&with("range", serde_json::json!({"start": 2, "end": 5})), data, None), "sample range 2..5"),
+            (raw(&with("range", serde_json::json!({"start": 3, "end": 1})), data, None), "sample range 3..1"),
+            (raw(&with("nonfinite_samples", 1000.into()), data, None), "nonfinite_samples 1000"),
+            (raw(&with("width", 4_000_000_000u64.into()), data, None), "expected 1536000000000"),
+            (raw(&with("height", 9.into()), data, None), "bytes of sums for 8x9 pixels"),
+            (raw(&with("width", (-3).into()), data, None), "header: "),
+            (raw(&good, &big, None), "pixel (5, 0) channel 1"),
+            (raw(&good, &wrap, None), "pixel (1, 0) channel 0"),
+            (raw(&good, data, Some(u64::MAX)), "truncated header"),
+            (raw(&good, data, Some(3)), "header: "),
+        ];
+        for (b, want) in cases {
+            std::fs::write(&p, &b).unwrap();
+            match Part::read(&p) {
+                Ok(part) => assert!(want.is_empty() && part == ps[0].1, "accepted a part that should fail with `{want}`"),
+                Err(e) => {
+                    let e = format!("{e:#}");
+                    assert!(!want.is_empty() && e.contains("a.psum") && e.contains(want), "want `{want}`: {e}");
+                }
+            }
+        }
         // Gaps left by the parts present.
         let (chain, gaps) = cover(10, &[ps[1].clone()]);
         assert_eq!(chain.len(), 1);

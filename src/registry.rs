@@ -9,6 +9,7 @@ use crate::accel::{Accel, bvh::Bvh, bvh4::Bvh4, bvh8::Bvh8, bvh8q::Bvh8q, linear
 use crate::config::{COMMON, RenderConfig};
 use crate::integrator::photon::gather::{GatherParams, irradiance_cache::CacheSettings, precomputed::PrecomputedParams};
 use crate::integrator::photon::{DirectParams, PhotonIntegrator, PhotonParams};
+use crate::integrator::ppm::PpmParams;
 use crate::integrator::progressive::ProgressiveParams;
 use crate::integrator::sppm::SppmParams;
 use crate::integrator::{Integrator, path::PathIntegrator, ppm::PpmIntegrator, sppm::SppmIntegrator};
@@ -144,8 +145,8 @@ pub fn catalogue() -> Catalogue {
                 },
                 Plugin {
                     name: "ppm",
-                    doc: "Probabilistic progressive photon mapping (Knaus & Zwicker 2011): each pass a `photon` render with a shrinking global radius, averaged.",
-                    params: &[],
+                    doc: "Probabilistic progressive photon mapping (Knaus & Zwicker 2011): each pass a `photon` render with shrinking radii, averaged; every photon within the pass radius counts, and `gather` defaults to `direct`.",
+                    params: PpmParams::DEFS,
                     groups: &["progressive", "integrator `photon`", "direct-light"],
                 },
             ],

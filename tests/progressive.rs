@@ -84,12 +84,10 @@ fn passes_or_render(integrator: &str, resolution: Option<[u32; 2]>) -> Film {
         "sppm" => RenderConfig { integrator: integrator.into(), resolution, ..Default::default() }
             .with("passes", 48)
             .with("photons_per_pass", 40_000),
+        // `ppm` with its defaults: every photon within the pass radius, gather `direct`.
         _ => RenderConfig { integrator: integrator.into(), resolution, spp: 4, ..Default::default() }
             .with("passes", 12)
-            .with("photons_per_pass", 40_000)
-            .with("gather", "direct")
-            .with("k", 400)
-            .with("max_radius", 40.0),
+            .with("photons_per_pass", 40_000),
     };
     let mut cb = |_: u32, _: f64, _: &Film| {};
     render_scene_observed(builtin("cornell-glass").unwrap(), &cfg, true, &[], &mut cb).unwrap().film

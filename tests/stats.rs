@@ -119,5 +119,8 @@ fn progressive_integrators_converge_at_the_theoretical_rate() {
     let slope = |n: &str| rows.iter().find(|r| r.test == n).unwrap().statistic;
     // The rate follows α: α = 0.8 converges more slowly than α = 2/3.
     assert!(slope("progressive/sppm/alpha0.8/slope") > slope("progressive/sppm/alpha0.67/slope"));
-    assert!(slope("progressive/planted/sppm_alpha1/slope") > -0.25);
+    // A radius that never shrinks stops converging (with the defaults' cap and probes,
+    // the measured slope is about −0.24).
+    assert!(slope("progressive/planted/sppm_alpha1/slope") > -0.35);
+    assert!(slope("progressive/planted/ppm_knn/slope") > slope("progressive/ppm/defaults/slope") + 0.15);
 }

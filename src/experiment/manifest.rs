@@ -209,6 +209,8 @@ struct ConfigDraft {
     span: std::ops::Range<usize>,
     /// For named configurations: key/values other than `name`.
     overrides: Vec<(String, Value)>,
+    /// A named configuration (its `overrides` are its keys, even when there are none).
+    named: bool,
 }
 
 impl Manifest {
@@ -302,6 +304,7 @@ impl Manifest {
                     stem: "base".into(),
                     span: 0..0,
                     overrides: vec![],
+                    named: false,
                 };
                 (vec![d], vec![], vec![])
             }
@@ -325,7 +328,7 @@ impl Manifest {
         let mut stems: BTreeMap<String, usize> = BTreeMap::new();
         let res_layer = vec![("resolution".to_string(), res_value.clone())];
         for (ci, d) in drafts.iter().enumerate() {
-            let own: &[(String, Value)] = if d.overrides.is_empty() { &d.values } else { &d.overrides };
+            let own: &[(String, Value)] = if d.named || !d.overrides.is_empty() { &d.overrides } else { &d.values };
             let cfg = build_config(&[&base, own, &res_layer])
                 .map_err(|e| anyhow!("{}: configuration `{}`: {e}", loc.at(d.span.clone()), d.label))?;
             // A [base] key (not overridden here) only has to be used by some configuration.
@@ -533,6 +536,7 @@ fn expand_sweep(s: &Spanned<SpannedTable>, loc: &Loc, repeats: &mut Option<(u32,
             stem,
             span: s.span(),
             overrides: vec![],
+            named: false,
         });
     }
     let names = axes.iter().map(|a| a.0.clone()).collect();
@@ -578,6 +582,7 @@ fn named_configs(c: &Spanned<Vec<Spanned<SpannedTable>>>, loc: &Loc) -> Result<E
             label: name,
             span: entry.span(),
             overrides,
+            named: true,
         });
     }
     Ok((drafts, vec!["name".into()], vec![]))
@@ -651,6 +656,9 @@ mod tests {
         assert_eq!(m.cells[3].stem, "b_b_r0");
         assert_eq!(m.cells[0].config.spp, 1);
         assert_eq!(m.cells[3].config.sampler, "random");
+        // A configuration of the base alone: only a name.
+        let m = parse(&format!("{HEAD}[base]\nspp = 3\n[[configs]]\nname = \"base\"\n[[configs]]\nname = \"c\"\nspp = 1\n")).unwrap();
+        assert_eq!((m.cells[0].label.as_str(), m.cells[0].config.spp, m.cells[1].config.spp), ("base", 3, 1));
     }
 
     fn err(text: &str) -> String {

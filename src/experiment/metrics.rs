@@ -39,6 +39,15 @@ pub struct RobustMetrics {
     pub worst_block: f64,
     /// Top-left pixel of that block.
     pub worst_block_at: [u32; 2],
+    /// Ratio of the image means, test / reference, over all pixels and channels
+    /// (0 in records written before it was measured).
+    #[serde(default)]
+    pub mean_ratio: f64,
+    /// The worst block's difference of means in standard errors of that difference,
+    /// estimated from the spread of the per-pixel differences inside the block (as
+    /// `photonlab diff --block`): well beyond ±3 the block's error is bias, not noise.
+    #[serde(default)]
+    pub worst_block_z: f64,
 }
 
 fn same_size(a: &Film, b: &Film) -> Result<()> {
@@ -122,7 +131,38 @@ pub fn robust_metrics(img: &Film, reference: &Film) -> Result<RobustMetrics> {
         max_pixel_share: if total > 0.0 { max / total } else { 0.0 },
         worst_block: worst.0,
         worst_block_at: worst.1,
+        mean_ratio: mean_ratio(img, reference),
+        worst_block_z: if blocks.iter().any(|b| b.is_some()) { block_z(img, reference, worst.1) } else { 0.0 },
     })
+}
+
+/// Ratio of the image means (test / reference) over all pixels and channels; NaN for
+/// a black reference.
+pub fn mean_ratio(img: &Film, reference: &Film) -> f64 {
+    let sum = |f: &Film| f.pixels.iter().map(|p| p.as_dvec3().element_sum()).sum::<f64>();
+    let r = sum(reference);
+    if r > 0.0 { sum(img) / r } else { f64::NAN }
+}
+
+/// The difference of the means of the [`BLOCK`]-px block at `at` (top-left pixel),
+/// over the pixels' RGB means, in standard errors: the sample variance of the
+/// per-pixel differences / pixel count. ±∞ when the pixels differ by a constant.
+pub fn block_z(img: &Film, reference: &Film, at: [u32; 2]) -> f64 {
+    let (mut sd, mut sd2, mut n) = (0.0f64, 0.0f64, 0.0f64);
+    for y in at[1]..(at[1] + BLOCK).min(img.height) {
+        for x in at[0]..(at[0] + BLOCK).min(img.width) {
+            let d = (img.get(x, y).as_dvec3().element_sum() - reference.get(x, y).as_dvec3().element_sum()) / 3.0;
+            sd += d;
+            sd2 += d * d;
+            n += 1.0;
+        }
+    }
+    if n < 2.0 {
+        return 0.0;
+    }
+    let var = ((sd2 - sd * sd / n) / (n - 1.0)).max(0.0);
+    let mean = sd / n;
+    if mean == 0.0 { 0.0 } else { mean / (var / n).sqrt() }
 }
 
 /// Errors of one component image (e.g. `indirect`) against the component reference.
@@ -286,6 +326,34 @@ mod tests {
         assert_eq!(im.get_pixel(0, 40).0, UNMEASURED);
         assert_eq!(im.get_pixel(0, 0).0, diverging(0.0));
         assert_eq!(diverging(-1.0), [59, 76, 192]);
+    }
+
+    /// The worst block's error in standard errors: a 0.025 offset under ±0.1
+    /// alternating pixel noise is 0.025 / (0.1 · √(256/255) / 16) ≈ 3.99 standard
+    /// errors; the image mean ratio counts every pixel.
+    #[test]
+    fn worst_block_in_standard_errors_and_mean_ratio() {
+        let r = flat(32, 32, 0.5);
+        let mut x = r.clone();
+        for y in 0..16 {
+            for xx in 16..32 {
+                let noise = if (xx + y) % 2 == 0 { 0.1 } else { -0.1 };
+                x.pixels[(y * 32 + xx) as usize] = Color::splat(0.525 + noise);
+            }
+        }
+        let m = robust_metrics(&x, &r).unwrap();
+        assert_eq!(m.worst_block_at, [16, 0]);
+        let want = 0.025 / (0.1 * (256.0f64 / 255.0).sqrt() / 16.0);
+        assert!((m.worst_block_z - want).abs() < 0.01 * want, "{} vs {want}", m.worst_block_z);
+        assert!((m.mean_ratio - (1.0 + 0.025 / 4.0 / 0.5)).abs() < 1e-6, "{}", m.mean_ratio);
+        // Noise alone: the block's mean is exact, zero standard errors.
+        let mut noisy = r.clone();
+        for (i, p) in noisy.pixels.iter_mut().enumerate() {
+            *p += Color::splat(if (i % 32 + i / 32) % 2 == 0 { 0.1 } else { -0.1 });
+        }
+        let m = robust_metrics(&noisy, &r).unwrap();
+        assert!(m.worst_block_z.abs() < 1e-3 && (m.mean_ratio - 1.0).abs() < 1e-6, "{m:?}");
+        assert!(mean_ratio(&flat(4, 4, 1.0), &flat(4, 4, 0.0)).is_nan());
     }
 
     #[test]

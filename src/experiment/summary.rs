@@ -164,6 +164,10 @@ pub fn write_summary(path: &Path, info: &SummaryInfo, stats: &[ConfigStats]) -> 
         100.0 * PIXEL_SHARE_FLAG
     );
 
+    let bias = bias_table(stats);
+    let _ = write!(s, "\n## Bias against the reference\n\n{bias}");
+    write_atomic(&path.with_file_name("bias.md"), bias.as_bytes())?;
+
     let _ = writeln!(s, "\n## What the errors can resolve\n");
     for r in info.references {
         match r.noise_relmse {
@@ -313,6 +317,55 @@ pub fn write_summary(path: &Path, info: &SummaryInfo, stats: &[ConfigStats]) -> 
     }
     write_atomic(path, s.as_bytes())?;
     Ok(s)
+}
+
+/// Signed errors with a sign and one decimal, `–` when not finite.
+fn signed_percent(v: f64) -> String {
+    if v.is_finite() { format!("{:+.1} %", 100.0 * v) } else { "–".into() }
+}
+
+/// The bias table (also written alone as `bias.md`): per configuration (and scene),
+/// the image mean ratio, the worst block and that block's error in standard errors.
+pub fn bias_table(stats: &[ConfigStats]) -> String {
+    let mut s = String::new();
+    let multi = stats.iter().any(|c| c.values.contains_key("scene"));
+    let _ = writeln!(
+        s,
+        "| {}configuration | image mean ratio | worst {BLOCK}-px block | at (px) | its error in std. errors |",
+        if multi { "scene | " } else { "" }
+    );
+    let _ = writeln!(s, "|{}---|---:|---:|---:|---:|", if multi { "---|" } else { "" });
+    for c in stats {
+        let r = &c.robust;
+        let scene = c.values.get("scene").and_then(|v| v.as_str()).unwrap_or_default();
+        let label = c.label.strip_prefix(&format!("scene={scene} ")).unwrap_or(&c.label);
+        let z = if r.worst_block == 0.0 {
+            "–".to_string()
+        } else if r.worst_block_z.is_infinite() {
+            format!("{}∞", if r.worst_block_z < 0.0 { "−" } else { "+" })
+        } else {
+            format!("{:+.1}", r.worst_block_z)
+        };
+        let ratio = if r.mean_ratio.is_finite() && r.mean_ratio > 0.0 { format!("{:.4}", r.mean_ratio) } else { "–".into() };
+        let _ = writeln!(
+            s,
+            "| {}{label} | {ratio} | {} | {}, {} | {z} |",
+            if multi { format!("{scene} | ") } else { String::new() },
+            signed_percent(r.worst_block),
+            r.worst_block_at[0],
+            r.worst_block_at[1]
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n*image mean ratio*: mean of the image over the reference's, all pixels and RGB. *worst block*: the largest \
+         signed relative error of a {BLOCK}-px block mean, sum(x) / sum(ref) − 1, over blocks whose reference mean exceeds \
+         {BLOCK_MIN_REF} (+: too bright), and its top-left pixel. *std. errors*: that block's difference of means over its \
+         standard error, from the spread of the per-pixel differences inside it (the pixels' noise, both images'): beyond \
+         about ±4 the block is biased, not noisy; a cache or a kernel that blurs its error over the block (correlated \
+         pixels) looks more significant than it is."
+    );
+    s
 }
 
 /// Time-to-error of each strategy (plot line) at each budget.

@@ -92,8 +92,9 @@ struct Checkpoint<S> {
     state: S,
 }
 
-/// v2: `sppm` pixels hold 10 numbers (area-probe counts added).
-const CHECKPOINT_FORMAT: &str = "photonlab-progressive-checkpoint-v2";
+/// v2: `sppm` pixels hold 10 numbers (area-probe counts added); v3: `ppm` keeps the
+/// first pass's radius too.
+const CHECKPOINT_FORMAT: &str = "photonlab-progressive-checkpoint-v3";
 
 /// What a checkpoint must match: the configuration without the keys that only say
 /// how long or where to run, and the scene.

@@ -14,6 +14,7 @@ pub mod irradiance;
 pub mod kdtree;
 pub mod nearest;
 pub mod record;
+pub mod within;
 
 use crate::accel::TraversalStats;
 use crate::geometry::Ray;

@@ -8,21 +8,33 @@
 //!
 //! Each estimator sees the floor only through photons: `sppm` with
 //! `sppm_direct = "photons"` (first photon hits counted), `ppm` writing the direct
-//! visualisation of its direct map (`photons-direct`, box kernel, k large enough that
-//! the radius limits every estimate). With independent random numbers, variance
-//! falls as p^−α and the kernel's bias as r² ∝ p^(α−1), so the MSE after p passes
-//! falls as p^−min(α, 2(1−α)): p^−2/3 for α = 2/3. Initial radii are large (0.5
-//! against a light of size 1), so the bias matters from the first pass.
+//! visualisation of its direct map (`photons-direct`). With independent random
+//! numbers, variance falls as p^−α and the kernel's bias as r² ∝ p^(α−1), so the MSE
+//! after p passes falls as p^−min(α, 2(1−α)): p^−2/3 for α = 2/3. First radii are
+//! given (0.5 against a light of size 1, so the bias matters from the first pass): the
+//! 20 × 20 floor makes the mean-density radius of `auto` meaningless here.
 //!
-//! - `progressive/{sppm,ppm}/alpha0.67/slope`: log–log slope of MSE against passes
-//!   (4 … 256, `--thorough` 4 … 1024) within [`SLOPE_TOL`] of −2/3.
-//! - `progressive/sppm/alpha0.8/slope`: the same for α = 0.8 (theory −0.4: the bias
-//!   term, which dominates here from the first pass), so the test sees the rate follow
-//!   α. (α < 2/3 is not tested: its bias falls faster than its variance, and the
-//!   slope only reaches −α after far more passes than a test can afford.)
-//! - `progressive/planted/{sppm,ppm}_alpha1/slope`: α = 1, the radius never shrinks:
-//!   the bias stays and the error stops falling; held to the −2/3 of a consistent
-//!   method, it must fail.
+//! - `progressive/sppm/alpha0.67/slope`: `sppm` with its defaults (density cap, area
+//!   probes) — log–log slope of MSE against passes (4 … 256, `--thorough` 4 … 1024)
+//!   within [`SLOPE_TOL`] of −2/3.
+//! - `progressive/ppm/defaults/slope`: `ppm` with its defaults (every photon within
+//!   the pass radius, cone kernel, disc test): the same.
+//! - `progressive/ppm/alpha0.67/slope`: `ppm` with the plain box kernel over the whole
+//!   sphere of the radius.
+//! - `progressive/sppm/alpha0.8/slope`: the plain `sppm` estimator (no probes, no cap)
+//!   for α = 0.8 (theory −0.4: the bias term, which dominates here from the first
+//!   pass), so the test sees the rate follow α; the probes and the cap remove most of
+//!   that bias over these passes (it then falls at −0.74, the variance's rate), which
+//!   would hide it. (α < 2/3 is not tested: its bias falls faster than its variance,
+//!   and the slope only reaches −α after far more passes than a test can afford.)
+//! - `progressive/planted/{sppm,ppm}_alpha1/slope`: α = 1 with the defaults, the
+//!   radius never shrinks: the bias stays and the error stops falling; held to the −2/3
+//!   of a consistent method, it must fail.
+//! - `progressive/planted/ppm_knn/slope`: `ppm` with the estimator it had before, the k
+//!   = 400 nearest photons within a first radius of 3 × their mean-density distance
+//!   (`ppm_knn`, `max_radius = auto`): every pass carries the same k-nearest bias, so
+//!   it must fail too (measured with k = 100: −0.73 over 4 … 256 passes, but flat,
+//!   −0.3, from 64 on — the variance ∝ 1/(k p) hides the bias floor at first).
 
 use super::{FamilyReport, Outcome, Settings, TestRow};
 use crate::accel::TraversalStats;
@@ -93,27 +105,53 @@ fn curve(w: &World, refs: &[Option<f64>], integrator: &mut dyn Integrator, level
     Ok(out)
 }
 
-fn config(integrator: &str, alpha: f32, passes: u32, seed: u64) -> RenderConfig {
+/// How a case configures its integrator beyond `alpha`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Setup {
+    /// The plain kernel estimator: `sppm` without area probes and density cap, `ppm`
+    /// with a box kernel over the whole sphere of radius [`RADIUS`].
+    Plain,
+    /// The integrator's defaults; only the photons reach the image (`sppm_direct =
+    /// "photons"`, `ppm`'s photons-direct output) and the first radius is given (the
+    /// 20 × 20 floor makes the mean-density radius of `auto` meaningless here).
+    Defaults,
+    /// `ppm` as it was before its estimates were radius-bounded: the k nearest
+    /// photons (`ppm_knn`, k = [`KNN_K`]) within a first radius left at `auto`, 3 × the
+    /// radius holding k photons at the mean density — above the k-th neighbour's
+    /// distance almost everywhere for ~3⁶ passes. The planted control.
+    Knn,
+}
+
+/// Photons per estimate of the k-nearest control: with the default 100 the variance
+/// (∝ 1/(k p)) hides the bias floor until ~256 passes; 400 (the value
+/// `tests/progressive.rs` used for `ppm` before) reaches it within the fitted range.
+const KNN_K: i64 = 400;
+
+fn config(integrator: &str, alpha: f32, setup: Setup, passes: u32, seed: u64) -> RenderConfig {
     let c =
         RenderConfig { integrator: integrator.into(), sampler: "random".into(), seed, max_depth: Some(4), spp: 1, ..Default::default() }
             .with("passes", passes)
             .with("photons_per_pass", PHOTONS as i64)
             .with("alpha", alpha);
-    if integrator == "sppm" {
-        // Photons carry the direct light.
-        let c = c.with("sppm_direct", "photons").with("sppm_radius", RADIUS);
-        // Where the kernel's bias sets the rate (α > 2/3), the plain estimator: the area
-        // probes and the first-pass density cap remove most of that bias over these
-        // passes (α = 0.8 then falls at −0.74, the variance's rate), which hides it.
-        if alpha > 2.0 / 3.0 + 1e-3 { c.with("sppm_area_probes", 0).with("sppm_density_cap", 0.0) } else { c }
-    } else {
+    match (integrator, setup) {
+        // Photons carry the direct light. Where the kernel's bias sets the rate
+        // (α > 2/3), the plain estimator: the area probes and the first-pass density
+        // cap remove most of that bias over these passes (α = 0.8 then falls at −0.74,
+        // the variance's rate), which hides it.
+        ("sppm", Setup::Plain) => {
+            c.with("sppm_direct", "photons").with("sppm_radius", RADIUS).with("sppm_area_probes", 0).with("sppm_density_cap", 0.0)
+        }
+        ("sppm", _) => c.with("sppm_direct", "photons").with("sppm_radius", RADIUS),
         // Radius-limited box estimates.
-        c.with("max_radius", RADIUS)
+        (_, Setup::Plain) => c
+            .with("max_radius", RADIUS)
             .with("k", 1_000_000)
             .with("filter", "box")
             .with("gather", "direct")
             .with("disc", 1.0)
-            .with("caustic_photons", 0)
+            .with("caustic_photons", 0),
+        (_, Setup::Defaults) => c.with("max_radius", RADIUS),
+        (_, Setup::Knn) => c.with("ppm_knn", true).with("k", KNN_K),
     }
 }
 
@@ -140,15 +178,17 @@ pub fn run(s: &Settings) -> Result<FamilyReport> {
     let target = theoretical_slope(2.0 / 3.0);
     let mut rows = Vec::new();
     let mut series = Vec::new();
-    let cases: [(&str, &str, f32, Outcome); 5] = [
-        ("sppm/alpha0.67", "sppm", 2.0 / 3.0, Outcome::Pass),
-        ("ppm/alpha0.67", "ppm", 2.0 / 3.0, Outcome::Pass),
-        ("sppm/alpha0.8", "sppm", 0.8, Outcome::Pass),
-        ("planted/sppm_alpha1", "sppm", 1.0, Outcome::Fail),
-        ("planted/ppm_alpha1", "ppm", 1.0, Outcome::Fail),
+    let cases = [
+        ("sppm/alpha0.67", "sppm", 2.0 / 3.0, Setup::Defaults, Outcome::Pass),
+        ("ppm/alpha0.67", "ppm", 2.0 / 3.0, Setup::Plain, Outcome::Pass),
+        ("ppm/defaults", "ppm", 2.0 / 3.0, Setup::Defaults, Outcome::Pass),
+        ("sppm/alpha0.8", "sppm", 0.8, Setup::Plain, Outcome::Pass),
+        ("planted/sppm_alpha1", "sppm", 1.0, Setup::Defaults, Outcome::Fail),
+        ("planted/ppm_alpha1", "ppm", 1.0, Setup::Defaults, Outcome::Fail),
+        ("planted/ppm_knn", "ppm", 2.0 / 3.0, Setup::Knn, Outcome::Fail),
     ];
-    for (i, (name, integrator, alpha, expected)) in cases.into_iter().enumerate() {
-        let c = run_one(&w, &refs, &config(integrator, alpha, passes, 0x5EED + i as u64), &levels)?;
+    for (i, (name, integrator, alpha, setup, expected)) in cases.into_iter().enumerate() {
+        let c = run_one(&w, &refs, &config(integrator, alpha, setup, passes, 0x5EED + i as u64), &levels)?;
         let slope = log_log_slope(&c).unwrap_or(f64::NAN);
         // A planted control is held to the rate of the consistent method it imitates.
         let want = if expected == Outcome::Fail { target } else { theoretical_slope(alpha as f64) };

@@ -134,12 +134,27 @@ pub struct PhotonSetup {
     pub direct: DirectParams,
     /// The gather plug-in and its parameters.
     pub gather: GatherSpec,
+    /// Estimates take every photon within the search radius instead of the k
+    /// nearest ([`photon::within`]), and an `auto` radius holds k photons at the mean
+    /// density instead of [`DENSITY_RADII`] times that (`ppm` sets it; not a key).
+    pub radius_bounded: bool,
 }
 
 impl PhotonSetup {
     /// Reads and checks the photon integrator's parameters (`cfg` gives the sampler).
     pub fn read(cfg: &RenderConfig, r: &crate::param::Reader) -> Result<Self> {
-        let p = PhotonParams::read(r)?;
+        Self::read_with_gather_default(cfg, r, None)
+    }
+
+    /// [`PhotonSetup::read`] with another default for `gather` when the key is not set
+    /// (`ppm`: `direct`).
+    pub fn read_with_gather_default(cfg: &RenderConfig, r: &crate::param::Reader, gather: Option<&str>) -> Result<Self> {
+        let mut p = PhotonParams::read(r)?;
+        if let Some(g) = gather
+            && !cfg.params.contains("gather")
+        {
+            p.gather = g.to_string();
+        }
         let direct = DirectParams::read_checked(r)?;
         let gather = GatherSpec::read(&p.gather, r)?;
         Filter::parse(&p.filter)?;
@@ -165,7 +180,7 @@ impl PhotonSetup {
         if p.emit_photons == Some(0) || p.max_emitted == 0 {
             bail!("emit_photons and max_emitted must be at least 1");
         }
-        Ok(PhotonSetup { p, direct, gather })
+        Ok(PhotonSetup { p, direct, gather, radius_bounded: false })
     }
 }
 
@@ -294,8 +309,10 @@ impl Integrator for PhotonIntegrator {
         // that would hold k photons at the mean density over the lit surfaces (so
         // they follow the photon count and the scene's scale; a region DENSITY_RADII²
         // times darker than average is the first to be estimated from fewer than k).
+        let bounded = self.setup.radius_bounded;
+        let radii = if bounded { 1.0 } else { DENSITY_RADII };
         let from_density = |k: u32, stored: usize, area: f64, fallback: f32| {
-            photon::mean_density_radius(k as usize, stored, area).map_or(fallback, |r| (DENSITY_RADII * r).min(r_scene))
+            photon::mean_density_radius(k as usize, stored, area).map_or(fallback, |r| (radii * r).min(r_scene))
         };
         let max_radius = p.max_radius.unwrap_or_else(|| from_density(p.k, maps.global_len(), maps.lit_area_global, 0.1 * r_scene));
         let caustic_radius =
@@ -306,8 +323,9 @@ impl Integrator for PhotonIntegrator {
         let t_global = Instant::now();
         let global = photon::global_grid(&maps, p.k as usize);
         self.times.insert("kdtree_build_s".into(), maps.build_s + t_global.elapsed().as_secs_f64());
-        let est_global = EstimateParams::new(p.k as usize, max_radius, filter, p.disc);
-        let est_caustic = EstimateParams::new(p.caustic_k as usize, caustic_radius, filter, p.disc);
+        let k_of = |k: u32| if bounded { photon::within::ALL } else { k as usize };
+        let est_global = EstimateParams::new(k_of(p.k), max_radius, filter, p.disc);
+        let est_caustic = EstimateParams::new(k_of(p.caustic_k), caustic_radius, filter, p.disc);
         let est_pre = est_global.with_area_probes(p.area_probes);
         let pre = self.setup.gather.precompute_stride().map(|stride| irradiance::precompute(world, &global, stride, &est_pre));
         self.times.insert("precompute_s".into(), t1.elapsed().as_secs_f64());

@@ -289,6 +289,105 @@ mod tests {
         assert!(mean_c < exact - 4.0 * se_c, "the control should read low: {mean_c} vs {exact} (se {se_c})");
     }
 
+    /// The gradients point the way the gathered irradiance changes: on the Cornell
+    /// box's floor, at the points of a grid where the gradients are steepest (away
+    /// from walls and blocks), the first-order change they predict for a step of the
+    /// position (±10 mm along the
+    /// translational gradient and across it) and a tilt of the normal (±3° about the
+    /// rotational gradient's axis and across it) agrees with the central finite
+    /// difference of gathers at the displaced points — same photon map and the same
+    /// random numbers at every point, so the difference is smooth. A gradient with its
+    /// sign flipped predicts the opposite change and fails.
+    #[test]
+    fn gradients_match_finite_differences() {
+        use crate::integrator::photon::context::ShadeKey;
+        use crate::material::ShadingPoint;
+        use crate::world::Interaction;
+        let scene = crate::scene::builtin::builtin("cornell").unwrap();
+        let accel = crate::registry::make_accel("bvh", &scene.triangles).unwrap();
+        let world = crate::world::World::new(scene, accel).unwrap();
+        let cfg = crate::config::RenderConfig { integrator: "photon".into(), seed: 7, ..Default::default() }
+            .with("gather", "final_gather")
+            .with("photons", 200_000)
+            .with("caustic_photons", 0);
+        let r = crate::param::Reader::new(&cfg.params);
+        let mut pi = crate::integrator::photon::PhotonIntegrator::new(&cfg, &r, crate::registry::make_rr(&cfg.rr).unwrap(), true).unwrap();
+        crate::integrator::Integrator::preprocess(&mut pi, &world).unwrap();
+        let ctx = pi.context().unwrap();
+        let wo = Vec3::Y;
+        let key = ShadeKey(0x6EAD);
+        let gather_at = |at: &Interaction, n: u32| {
+            let bsdf = &world.material(at).bsdf;
+            let mut st = TraversalStats::default();
+            gather(ctx, &GatherPoint { world: &world, it: at, wo, bsdf, key }, n, Refine::OFF, &mut st)
+        };
+        let mean = |g: &[Vec3; 3]| (g[0] + g[1] + g[2]) / 3.0;
+        let e_of = |at: &Interaction| crate::math::mean(gather_at(at, 4096).irradiance) as f64;
+        // Floor points of a grid (the box is 0–555 mm wide and deep).
+        let mut floor = Vec::new();
+        for x in (25..=525).step_by(50) {
+            for z in (25..=525).step_by(50) {
+                // From just under the ceiling: points under the blocks are not floor hits.
+                let down = crate::geometry::Ray::new(Vec3::new(x as f32, 540.0, z as f32), -Vec3::Y);
+                if let Some(it) = world.intersect(&down, &mut TraversalStats::default())
+                    && it.p.y.abs() < 1.0
+                    && it.sp.ng.y > 0.99
+                {
+                    floor.push((it, gather_at(&it, 1024)));
+                }
+            }
+        }
+        assert!(floor.len() > 50, "{} floor points", floor.len());
+        // Relative gradients are steepest where E is small: only points at least half
+        // as bright as the median compete.
+        let mut es: Vec<f32> = floor.iter().map(|f| crate::math::mean(f.1.irradiance)).collect();
+        es.sort_by(f32::total_cmp);
+        let floor_e = 0.5 * es[es.len() / 2];
+        let steepest = |g: &dyn Fn(&HemisphereResult) -> Vec3| {
+            let rel = |h: &HemisphereResult| g(h).length() / crate::math::mean(h.irradiance).max(1e-9);
+            // Away from walls and blocks (no ray above 10° hits anything within 80 mm), where
+            // E is smooth over the steps: at a contact a step crosses the shadow's edge.
+            let lit = floor.iter().filter(|f| crate::math::mean(f.1.irradiance) >= floor_e && f.1.min_distance > 80.0);
+            lit.max_by(|a, b| rel(&a.1).total_cmp(&rel(&b.1))).map(|(it, _)| *it).unwrap()
+        };
+        // Translation: E(p ± δ·d) along the gradient and across it.
+        let delta = 10.0f32;
+        let it = steepest(&|h| mean(&h.trans_grad) * Vec3::new(1.0, 0.0, 1.0));
+        let base = gather_at(&it, 4096);
+        let e0 = crate::math::mean(base.irradiance) as f64;
+        let along = (mean(&base.trans_grad) * Vec3::new(1.0, 0.0, 1.0)).normalize();
+        for (name, d) in [("along", along), ("across", Vec3::Y.cross(along))] {
+            let at = |s: f32| e_of(&Interaction { p: it.p + d * (s * delta), ..it });
+            let fd = (at(1.0) - at(-1.0)) / 2.0;
+            let pred = (mean(&base.trans_grad).dot(d) * delta) as f64;
+            eprintln!("translation at {} {name} the gradient: finite difference {fd:.6}, gradient {pred:.6} (E {e0:.5})", it.p);
+            if name == "along" {
+                assert!(fd.abs() > 0.005 * e0, "the steepest point has too small a gradient: {fd} of {e0}");
+            }
+            assert!((pred - fd).abs() <= 0.35 * fd.abs() + 0.003 * e0, "translational gradient {name}: {pred} against {fd}");
+        }
+        // Rotation: E with the normal tilted by ±θ about the gradient's axis and across it.
+        let theta = 3f32.to_radians();
+        let it = steepest(&|h| mean(&h.rot_grad) * Vec3::new(1.0, 0.0, 1.0));
+        let base = gather_at(&it, 4096);
+        let e0 = crate::math::mean(base.irradiance) as f64;
+        let n = facing_shading_normal(&it, wo);
+        let axis = (mean(&base.rot_grad) * Vec3::new(1.0, 0.0, 1.0)).normalize();
+        for (name, a) in [("about", axis), ("across", n.cross(axis))] {
+            // Tilting towards w = a × n turns the normal about a: n × n' = sin θ · a.
+            let w = a.cross(n);
+            let tilted = |s: f32| n * theta.cos() + w * (s * theta.sin());
+            let at = |s: f32| e_of(&Interaction { sp: ShadingPoint::new(it.sp.ng, tilted(s)), ..it });
+            let fd = (at(1.0) - at(-1.0)) / 2.0;
+            let pred = (mean(&base.rot_grad).dot(n.cross(tilted(1.0)))) as f64;
+            eprintln!("tilt at {} {name} the gradient's axis: finite difference {fd:.6}, gradient {pred:.6} (E {e0:.5})", it.p);
+            if name == "about" {
+                assert!(fd.abs() > 0.005 * e0, "the steepest point has too small a rotational gradient: {fd} of {e0}");
+            }
+            assert!((pred - fd).abs() <= 0.35 * fd.abs() + 0.003 * e0, "rotational gradient {name}: {pred} against {fd}");
+        }
+    }
+
     #[test]
     fn strata_follow_ward() {
         assert_eq!(strata(64), (5, 13));

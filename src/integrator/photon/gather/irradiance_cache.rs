@@ -327,11 +327,9 @@ impl IrradianceCache {
                 .filter_map(|&(x, y)| {
                     let mut stats = TraversalStats::default();
                     let pixel = y as u64 * w as u64 + x as u64;
-                    let key = ShadeKey(hash_words(&[0xCAC4E, seed, pixel]));
-                    let j = hash_words(&[0x717E5, seed, pixel]);
-                    let (jx, jy) = (u32_to_unit(j as u32), u32_to_unit((j >> 32) as u32));
+                    let PrefillKeys { path: path_key, gather: key, jitter: (jx, jy) } = PrefillKeys::new(seed, pixel);
                     let ray = cam.generate_ray(x as f32 + jx, y as f32 + jy);
-                    let path = ctx.follow_specular_path(world, ray, key, &mut stats)?;
+                    let path = ctx.follow_specular_path(world, ray, path_key, &mut stats)?;
                     let (it, wo) = (path.it, path.wo);
                     let bsdf = &world.material(&it).bsdf;
                     if !cacheable(bsdf) || self.lookup(it.p, facing_shading_normal(&it, wo)).is_some() {
@@ -347,6 +345,26 @@ impl IrradianceCache {
             pb.inc(1);
         }
         pb.finish_and_clear();
+    }
+}
+
+/// The random numbers of the prefill at one pixel, from independent streams: the
+/// camera ray's jitter, its mirror and glass choices (`path`: dimension d is the
+/// choice at specular depth d) and the entry's gather (`gather`: dimensions 2s, 2s + 1
+/// jitter the first ray of stratum s). One key for both would tie the glass branch
+/// taken at depth d to the jitter of the gather's stratum d / 2.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PrefillKeys {
+    path: ShadeKey,
+    gather: ShadeKey,
+    jitter: (f32, f32),
+}
+
+impl PrefillKeys {
+    fn new(seed: u64, pixel: u64) -> Self {
+        let gather = ShadeKey(hash_words(&[0xCAC4E, seed, pixel]));
+        let j = hash_words(&[0x717E5, seed, pixel]);
+        PrefillKeys { path: gather.child(0x5BEC_CA3E), gather, jitter: (u32_to_unit(j as u32), u32_to_unit((j >> 32) as u32)) }
     }
 }
 
@@ -457,6 +475,40 @@ mod tests {
         let mut off = IrradianceCache::new(CacheSettings { ic_neighbor_clamp: false, ..test_settings() });
         off.insert(vec![big, small]);
         assert!(off.entries().iter().any(|e| e.radius == 1.0));
+    }
+
+    /// The prefill's camera-ray choices, its jitter and its gather's stratum jitter
+    /// are uncorrelated over pixels (one key for the path and the gather gives a
+    /// correlation of 1 between the glass choice at depth d and dimension d).
+    #[test]
+    fn prefill_draws_are_independent() {
+        let n = 4096u64;
+        let keys: Vec<PrefillKeys> = (0..n).map(|p| PrefillKeys::new(0x5EED, p)).collect();
+        let corr = |a: &dyn Fn(&PrefillKeys) -> f32, b: &dyn Fn(&PrefillKeys) -> f32| {
+            let (xs, ys): (Vec<f64>, Vec<f64>) = keys.iter().map(|k| (a(k) as f64, b(k) as f64)).unzip();
+            let (mx, my) = (xs.iter().sum::<f64>() / n as f64, ys.iter().sum::<f64>() / n as f64);
+            let cov: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+            let (vx, vy): (f64, f64) = (xs.iter().map(|x| (x - mx).powi(2)).sum(), ys.iter().map(|y| (y - my).powi(2)).sum());
+            cov / (vx * vy).sqrt()
+        };
+        // 4096 pairs: an independent correlation has standard deviation 1/64.
+        let limit = 5.0 / 64.0;
+        let max_spec = crate::integrator::photon::context::MAX_SPECULAR as u64;
+        for d in 0..max_spec {
+            for g in 0..max_spec + 2 {
+                let c = corr(&|k| k.path.uniform(d), &|k| k.gather.uniform(g));
+                assert!(c.abs() < limit, "specular choice {d} and gather dimension {g}: correlation {c}");
+            }
+        }
+        for g in 0..max_spec {
+            for (name, j) in [("x", &(|k: &PrefillKeys| k.jitter.0) as &dyn Fn(&PrefillKeys) -> f32), ("y", &|k: &PrefillKeys| k.jitter.1)]
+            {
+                let c = corr(j, &|k| k.gather.uniform(g));
+                assert!(c.abs() < limit, "jitter {name} and gather dimension {g}: correlation {c}");
+                let c = corr(j, &|k| k.path.uniform(g));
+                assert!(c.abs() < limit, "jitter {name} and specular choice {g}: correlation {c}");
+            }
+        }
     }
 
     #[test]
