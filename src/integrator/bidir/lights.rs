@@ -249,7 +249,7 @@ mod tests {
         assert!((crate::math::mean(e.throughput) * pick / power - 1.0).abs() < 1e-4);
         // A receiver along the emitted ray: direct sampling of the same light gives
         // emission_pdf_w·cos_receiver/d² = emission density of the same ray in area terms.
-        let p = e.origin + e.dir * 0.5;
+        let p = e.origin + e.dir * (0.2 * lights.scene_radius);
         let il = illuminate(&lights, &scene, p, 0.3, [0.2, 0.7]).unwrap();
         assert!((il.pick - pick).abs() < 1e-7 && !il.delta);
         assert!((il.emission_pdf_w * pick / e.emission_pdf_w - 1.0).abs() < 1e-3, "{} {}", il.emission_pdf_w * pick, e.emission_pdf_w);
