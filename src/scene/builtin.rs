@@ -353,7 +353,7 @@ pub fn door_ajar() -> Scene {
             Material::diffuse("wall", Color::new(0.75, 0.72, 0.68)),
             Material::diffuse("floor", Color::new(0.55, 0.45, 0.35)),
             Material::diffuse("door", Color::new(0.6, 0.6, 0.65)),
-            Material { emission: Color::new(60.0, 52.0, 40.0), ..Material::diffuse("lamp", Color::splat(0.5)) },
+            Material { emission: Color::new(900.0, 780.0, 600.0), ..Material::diffuse("lamp", Color::splat(0.5)) },
             Material {
                 name: "table".into(),
                 bsdf: Bsdf::Glossy(Glossy { kd: Color::new(0.3, 0.2, 0.12), ks: Color::splat(0.3), exponent: 40.0 }),
