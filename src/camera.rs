@@ -131,7 +131,7 @@ impl Camera {
         }
         let d = self.eye - p;
         let dist = d.length();
-        if !(dist > 0.0) {
+        if dist.is_nan() || dist <= 0.0 {
             return None;
         }
         let to_eye = d / dist;

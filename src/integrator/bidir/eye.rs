@@ -151,7 +151,7 @@ fn direct<S: Sampler + ?Sized, R: Record>(
     let u_sel = s.next_1d();
     let u_light = s.next_2d();
     let Some(il) = illuminate(&world.lights, &world.scene, it.p, u_sel, u_light) else { return Color::ZERO };
-    if !(il.direct_pdf_w > 0.0) {
+    if il.direct_pdf_w.is_nan() || il.direct_pdf_w <= 0.0 {
         return Color::ZERO;
     }
     let f = bsdf.eval(&it.sp, wo, il.wi);
@@ -199,7 +199,7 @@ pub fn connect(
     let none = (0.0, Color::ZERO);
     let d = v.it.p - it.p;
     let dist2 = d.length_squared();
-    if !(dist2 > 0.0) {
+    if dist2.is_nan() || dist2 <= 0.0 {
         return none;
     }
     let dir = d / dist2.sqrt();

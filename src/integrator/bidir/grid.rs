@@ -23,7 +23,7 @@ impl HashGrid {
             lo = lo.min(p);
         }
         let mut g = HashGrid { cell: 2.0 * r, lo, starts: vec![0; n + 1], indices: vec![0; n] };
-        if n == 0 || !(r > 0.0) {
+        if n == 0 || r.is_nan() || r <= 0.0 {
             return g;
         }
         let buckets: Vec<u32> = points.map(|p| g.bucket(g.cell_of(p))).collect();

@@ -123,7 +123,7 @@ pub fn trace_light<S: Sampler + ?Sized>(
     let u_pos = s.next_2d();
     let u_dir = s.next_2d();
     let Some(e) = emit(&world.lights, &world.scene, u_sel, u_pos, u_dir) else { return };
-    if !(e.emission_pdf_w > 0.0) || !crate::math::is_finite(e.throughput) {
+    if e.emission_pdf_w.is_nan() || e.emission_pdf_w <= 0.0 || !crate::math::is_finite(e.throughput) {
         return;
     }
     let mut partials = Partials::light_start(&ctx.f, e.direct_pdf_a, e.emission_pdf_w, e.cos, e.delta, e.finite);
