@@ -81,6 +81,65 @@ impl Camera {
     }
 }
 
+/// A world point as seen by the camera: what light tracing (connecting a light-path
+/// vertex to the eye, pbrt's `Camera::SampleWi`, SmallVCM's `ConnectToCamera`) needs.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraConnection {
+    /// Continuous image position in pixels.
+    pub raster: (f32, f32),
+    /// Unit direction from the point towards the eye.
+    pub to_eye: Vec3,
+    /// Distance from the point to the eye.
+    pub dist: f32,
+    /// Density of the camera ray's direction at the eye, per unit solid angle, when the
+    /// pixel position is uniform over a pixel of area one: d²/cos³ with d the distance of
+    /// the image plane on which a pixel has area one and cos the angle to the axis. It
+    /// is also the pixel's importance W_e (pinhole, box filter).
+    pub pdf_dir: f32,
+}
+
+impl Camera {
+    /// Distance of the image plane on which a pixel has area one (pixels are square).
+    #[inline]
+    pub fn image_plane_distance(&self) -> f32 {
+        self.height as f32 / (2.0 * self.tan_half)
+    }
+
+    /// Viewing direction (unit).
+    #[inline]
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
+
+    /// Solid-angle density of a camera ray through a uniform position inside a pixel
+    /// (see [`CameraConnection::pdf_dir`]); `dir` need not be unit length.
+    #[inline]
+    pub fn pdf_dir(&self, dir: Vec3) -> f32 {
+        let cos = dir.normalize().dot(self.forward);
+        if cos <= 0.0 {
+            return 0.0;
+        }
+        let d = self.image_plane_distance();
+        d * d / (cos * cos * cos)
+    }
+
+    /// The camera's view of `p`, if `p` lies in front of it and inside the image.
+    pub fn connect(&self, p: Vec3) -> Option<CameraConnection> {
+        let (x, y) = self.project(p)?;
+        if !(x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32) {
+            return None;
+        }
+        let d = self.eye - p;
+        let dist = d.length();
+        if dist.is_nan() || dist <= 0.0 {
+            return None;
+        }
+        let to_eye = d / dist;
+        let pdf_dir = self.pdf_dir(-to_eye);
+        (pdf_dir > 0.0 && pdf_dir.is_finite()).then_some(CameraConnection { raster: (x, y), to_eye, dist, pdf_dir })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -101,5 +160,34 @@ mod tests {
         assert!(Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Y, 0.0, 1, 1).is_err());
         assert!(Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Y, 40.0, 0, 1).is_err());
         assert!(Camera::new(Vec3::ZERO, Vec3::Y, Vec3::Y, 40.0, 1, 1).is_err());
+    }
+
+    #[test]
+    fn connection_inverts_ray_generation_and_pdf_matches_pixel_solid_angle() {
+        let c = Camera::new(Vec3::new(0.3, 1.0, 5.0), Vec3::new(0.0, 0.8, 0.0), Vec3::Y, 50.0, 64, 48).unwrap();
+        for &(x, y) in &[(0.5f32, 0.5f32), (31.25, 20.5), (63.9, 47.9), (10.0, 40.0)] {
+            let r = c.generate_ray(x, y);
+            let p = r.at(4.0);
+            let k = c.connect(p).unwrap();
+            assert!((k.raster.0 - x).abs() < 2e-3 && (k.raster.1 - y).abs() < 2e-3, "{:?} vs {x},{y}", k.raster);
+            assert!((k.to_eye + r.d).length() < 1e-5 && (k.dist - 4.0).abs() < 1e-4);
+            // The solid angle of the pixel holding (x, y), from its four corner rays,
+            // is 1 / pdf_dir (the density is uniform within a small pixel).
+            let (px, py) = (x.floor(), y.floor());
+            let corners = [
+                c.generate_ray(px, py).d,
+                c.generate_ray(px + 1.0, py).d,
+                c.generate_ray(px + 1.0, py + 1.0).d,
+                c.generate_ray(px, py + 1.0).d,
+            ];
+            let tri = |a: Vec3, b: Vec3, d: Vec3| 2.0 * (a.dot(b.cross(d))).abs().atan2(1.0 + a.dot(b) + b.dot(d) + d.dot(a));
+            let omega = tri(corners[0], corners[1], corners[2]) + tri(corners[0], corners[2], corners[3]);
+            let centre = c.generate_ray(px + 0.5, py + 0.5).d;
+            let rel = (omega * c.pdf_dir(centre) - 1.0).abs();
+            assert!(rel < 1e-3, "pixel solid angle × pdf = {}", omega * c.pdf_dir(centre));
+        }
+        // Behind the camera or outside the image: no connection.
+        assert!(c.connect(Vec3::new(0.3, 1.0, 9.0)).is_none());
+        assert!(c.connect(c.generate_ray(-3.0, 10.0).at(2.0)).is_none());
     }
 }

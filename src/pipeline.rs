@@ -94,6 +94,10 @@ pub fn render_scene_observed(
                 extra_images.push((name.clone(), mark_points(&world, &film, &integrator.debug_points())));
                 continue;
             }
+            if let Some(images) = integrator.render_aov(&world, name) {
+                extra_images.extend(images?.into_iter().map(|(n, f)| (format!("{name}-{n}"), f)));
+                continue;
+            }
             integrator.set_output(name)?;
             let (img, _) = render(&world, integrator.as_ref(), sampler.as_ref(), cfg.spp, quiet);
             crate::progress::check_cancel()?;

@@ -7,6 +7,11 @@
 
 use crate::accel::{Accel, bvh::Bvh, bvh4::Bvh4, bvh8::Bvh8, bvh8q::Bvh8q, linear::Linear};
 use crate::config::{COMMON, RenderConfig};
+use crate::integrator::bidir::{
+    BidirParams,
+    bdpt::BdptIntegrator,
+    vcm::{VcmIntegrator, VcmParams},
+};
 use crate::integrator::photon::gather::{GatherParams, irradiance_cache::CacheSettings, precomputed::PrecomputedParams};
 use crate::integrator::photon::{DirectParams, PhotonIntegrator, PhotonParams};
 use crate::integrator::ppm::PpmParams;
@@ -23,7 +28,7 @@ use glam::Vec3;
 /// Accelerator names.
 pub const ACCELS: &[&str] = &["none", "bvh", "bvh4", "bvh8", "bvh8q"];
 /// Integrator names.
-pub const INTEGRATORS: &[&str] = &["path", "photon", "sppm", "ppm"];
+pub const INTEGRATORS: &[&str] = &["path", "photon", "sppm", "ppm", "bdpt", "vcm"];
 
 fn unknown(kind: &str, name: &str, known: &[&str]) -> anyhow::Error {
     anyhow::anyhow!("unknown {kind} `{name}` (known: {})", known.join(", "))
@@ -78,6 +83,8 @@ pub fn make_integrator_allowing(
         "photon" => Box::new(PhotonIntegrator::new(cfg, &r, rr, quiet)?),
         "sppm" => Box::new(SppmIntegrator::new(cfg, &r, rr, quiet)?),
         "ppm" => Box::new(PpmIntegrator::new(cfg, &r, quiet)?),
+        "bdpt" => Box::new(BdptIntegrator::new(cfg, &r, rr, quiet)?),
+        "vcm" => Box::new(VcmIntegrator::new(cfg, &r, rr, quiet)?),
         other => return Err(unknown("integrator", other, INTEGRATORS)),
     };
     let unused = r.unused();
@@ -85,7 +92,7 @@ pub fn make_integrator_allowing(
         return Err(unused_error(key, &r.chosen()));
     }
     if !cfg.record_passes.is_empty() && !integrator.is_progressive() {
-        bail!("record_passes only applies to the progressive integrators (sppm, ppm), not `{}`", cfg.integrator);
+        bail!("record_passes only applies to the progressive integrators (sppm, ppm, vcm), not `{}`", cfg.integrator);
     }
     Ok((integrator, unused))
 }
@@ -148,6 +155,18 @@ pub fn catalogue() -> Catalogue {
                     doc: "Probabilistic progressive photon mapping (Knaus & Zwicker 2011): each pass a `photon` render with shrinking radii, averaged; every photon within the pass radius counts, and `gather` defaults to `direct`.",
                     params: PpmParams::DEFS,
                     groups: &["progressive", "integrator `photon`", "direct-light"],
+                },
+                Plugin {
+                    name: "bdpt",
+                    doc: "Bidirectional path tracing (Veach 1997): every (s, t) technique incl. light tracing, one MIS weight.",
+                    params: &[],
+                    groups: &["bidir"],
+                },
+                Plugin {
+                    name: "vcm",
+                    doc: "Vertex connection and merging (Georgiev et al. 2012): bdpt and photon merging under one MIS weight, progressive.",
+                    params: VcmParams::DEFS,
+                    groups: &["bidir", "progressive"],
                 },
             ],
         },
@@ -229,6 +248,7 @@ pub fn catalogue() -> Catalogue {
             doc: "pass budget, radius schedule and checkpoints of `sppm` and `ppm`",
             params: ProgressiveParams::DEFS,
         },
+        Group { name: "bidir", doc: "MIS of the bidirectional integrators `bdpt` and `vcm`", params: BidirParams::DEFS },
         Group { name: "direct-light", doc: "direct light by distribution ray tracing", params: DirectParams::DEFS },
         Group { name: "gather", doc: "the final gather shared by the gathering plug-ins", params: GatherParams::DEFS },
     ];

@@ -1,5 +1,6 @@
-//! Integrators (chosen by name: `path`, `photon`, `sppm`, `ppm`).
+//! Integrators (chosen by name: `path`, `photon`, `sppm`, `ppm`, `bdpt`, `vcm`).
 
+pub mod bidir;
 pub mod path;
 pub mod photon;
 pub mod ppm;
@@ -47,6 +48,11 @@ pub trait Integrator: Send + Sync {
     /// Progressive integrators (`sppm`, `ppm`) render the whole image themselves, pass
     /// by pass, calling `on_pass` with each pass's image; `None` = use the render pass.
     fn render_progressive(&mut self, _world: &World, _on_pass: progressive::OnPass) -> Option<anyhow::Result<(Film, RenderStats)>> {
+        None
+    }
+    /// Extra images the integrator renders itself in one run, by AOV name (e.g.
+    /// `strategies`: one image per technique); `None` = render the AOV with `li`.
+    fn render_aov(&mut self, _world: &World, _aov: &str) -> Option<anyhow::Result<Vec<(String, Film)>>> {
         None
     }
 }

@@ -35,6 +35,8 @@
 //!   (`ppm_knn`, `max_radius = auto`): every pass carries the same k-nearest bias, so
 //!   it must fail too (measured with k = 100: −0.73 over 4 … 256 passes, but flat,
 //!   −0.3, from 64 on — the variance ∝ 1/(k p) hides the bias floor at first).
+//! - `progressive/vcm_ppm/alpha0.67/slope`, `progressive/vcm/alpha0.67/slope`,
+//!   `progressive/planted/vcm_ppm_alpha1/slope`: `vcm`, see [`vcm_rows`].
 
 use super::{FamilyReport, Outcome, Settings, TestRow};
 use crate::accel::TraversalStats;
@@ -195,6 +197,9 @@ pub fn run(s: &Settings) -> Result<FamilyReport> {
         rows.push(TestRow::new(format!("progressive/{name}/slope"), slope, None, expected, (slope - want).abs() <= SLOPE_TOL));
         series.push(Series { name: format!("{integrator}, alpha {alpha:.2} (slope {slope:.2}; theory {want:.2})"), points: c });
     }
+    let (vrows, vseries) = vcm_rows(&w, &refs, &levels, passes)?;
+    rows.extend(vrows);
+    series.extend(vseries);
     let plots = vec![(
         "progressive".to_string(),
         LinePlot {
@@ -207,6 +212,44 @@ pub fn run(s: &Settings) -> Result<FamilyReport> {
         },
     )];
     Ok(FamilyReport { rows, plots })
+}
+
+/// `vcm` rows: merging alone (`vcm_mode = "ppm"`: photons carry all light onto the
+/// floor, radius r_i = r₀ i^((α−1)/2), so the MSE falls at the same −min(α, 2(1−α))),
+/// full `vcm` (connections take most of the floor's light unbiased, so its error falls
+/// at least that fast: slope ≤ theory + tolerance), and the planted non-shrinking
+/// radius (α = 1, merging alone), which must fail.
+fn vcm_rows(w: &World, refs: &[Option<f64>], levels: &[u32], passes: u32) -> Result<(Vec<TestRow>, Vec<Series>)> {
+    let (mut rows, mut series) = (Vec::new(), Vec::new());
+    let cases: [(&str, &str, f32, Outcome); 3] = [
+        ("vcm_ppm/alpha0.67", "ppm", 2.0 / 3.0, Outcome::Pass),
+        ("vcm/alpha0.67", "vcm", 2.0 / 3.0, Outcome::Pass),
+        ("planted/vcm_ppm_alpha1", "ppm", 1.0, Outcome::Fail),
+    ];
+    for (i, (name, mode, alpha, expected)) in cases.into_iter().enumerate() {
+        let cfg = RenderConfig {
+            integrator: "vcm".into(),
+            sampler: "random".into(),
+            seed: 0x7C3 + i as u64,
+            max_depth: Some(4),
+            spp: 1,
+            ..Default::default()
+        }
+        .with("passes", passes)
+        .with("alpha", alpha)
+        .with("vcm_mode", mode)
+        .with("vcm_radius", RADIUS);
+        let r = crate::param::Reader::new(&cfg.params);
+        let mut vcm = crate::integrator::bidir::vcm::VcmIntegrator::new(&cfg, &r, make_rr(&cfg.rr)?, true)?;
+        r.finish(|k| Some(format!("another plug-in (`{k}`)")))?;
+        let c = curve(w, refs, &mut vcm, levels)?;
+        let slope = log_log_slope(&c).unwrap_or(f64::NAN);
+        let want = theoretical_slope(if expected == Outcome::Fail { 2.0 / 3.0 } else { alpha as f64 });
+        let ok = if mode == "vcm" { slope <= want + SLOPE_TOL } else { (slope - want).abs() <= SLOPE_TOL };
+        rows.push(TestRow::new(format!("progressive/{name}/slope"), slope, None, expected, ok));
+        series.push(Series { name: format!("vcm {mode}, alpha {alpha:.2} (slope {slope:.2}; theory {want:.2})"), points: c });
+    }
+    Ok((rows, series))
 }
 
 #[cfg(test)]

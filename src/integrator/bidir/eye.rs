@@ -1,0 +1,265 @@
+//! The camera (eye) subpath of one pixel sample and every technique that ends on it:
+//! emitters it hits (s = 0), direct light sampling (s = 1), connections to the
+//! vertices of its own light subpath (s ≥ 2, t ≥ 2) and merging with the light
+//! vertices of the whole pass near each vertex (SmallVCM's camera loop).
+
+use super::Ctx;
+use super::grid::HashGrid;
+use super::lights::{emitter_pdfs, illuminate};
+use super::mis::{Partials, w_to_a, weight_connect, weight_direct, weight_hit, weight_merge};
+use super::subpath::{LightVertex, adjoint_cos, scatter};
+use crate::accel::TraversalStats;
+use crate::material::{Bsdf, TransportMode};
+use crate::math::Color;
+use crate::sampler::{BOUNCE_LIGHT_SELECT, DIM_PIXEL, Sampler, bounce_dim};
+use crate::world::Interaction;
+use glam::Vec3;
+
+/// Technique index of merging in [`Record::add`].
+pub const MERGE: u32 = u32::MAX;
+
+/// Receives every technique's contribution (per-strategy images).
+pub trait Record {
+    /// Technique (s light vertices, t camera vertices; s = [`MERGE`] for merging),
+    /// its MIS weight and weighted contribution (camera throughput applied).
+    fn add(&mut self, s: u32, t: u32, weight: f32, value: Color);
+}
+
+/// Records nothing.
+pub struct NoRecord;
+
+impl Record for NoRecord {
+    #[inline]
+    fn add(&mut self, _: u32, _: u32, _: f32, _: Color) {}
+}
+
+/// The light vertices a camera subpath may merge with.
+pub struct MergeSet<'a> {
+    /// All light vertices of the pass.
+    pub vertices: &'a [LightVertex],
+    /// Their grid.
+    pub grid: &'a HashGrid,
+}
+
+/// Smallest cosine between the normals of a merged light vertex and camera vertex
+/// (as `sppm`'s photon test: light on another face of a corner is not merged).
+const MERGE_NORMAL_COS: f32 = crate::integrator::sppm::NORMAL_COS;
+
+/// Radiance estimate of pixel (x, y)'s camera subpath of sample `index`.
+#[allow(clippy::too_many_arguments)]
+pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
+    ctx: &Ctx,
+    s: &mut S,
+    x: u32,
+    y: u32,
+    index: u64,
+    light_path: &[LightVertex],
+    merge: Option<&MergeSet>,
+    rec: &mut R,
+    stats: &mut TraversalStats,
+) -> Color {
+    let world = ctx.world;
+    let cam = &world.scene.camera;
+    s.start(y as u64 * cam.width as u64 + x as u64, index);
+    s.set_dimension(DIM_PIXEL);
+    let u = s.next_2d();
+    let mut ray = cam.generate_ray(x as f32 + u[0], y as f32 + u[1]);
+    let mut partials = Partials::camera_start(&ctx.f, cam.pdf_dir(ray.d));
+    let mut beta = Color::ONE;
+    let mut l = Color::ZERO;
+    let mut prev = ray.o;
+    let mut len = 1u32;
+    let mut specular_path = true;
+    let mode = ctx.mode;
+    while let Some(it) = world.intersect(&ray, stats) {
+        let wo = -ray.d.normalize();
+        partials.arrive(ctx.f.h, Some((it.p - prev).length_squared()), wo.dot(it.sp.ng));
+        let mat = world.material(&it);
+        if it.front && mat.is_emitter() {
+            let w = if len == 1 {
+                1.0
+            } else if mode.merge && !mode.connect {
+                if specular_path { 1.0 } else { 0.0 }
+            } else if mode.connect {
+                match emitter_pdfs(&world.lights, it.tri, wo) {
+                    Some((da, ew)) => weight_hit(&ctx.f, &partials, da, ew),
+                    None => 0.0,
+                }
+            } else {
+                0.0
+            };
+            if w > 0.0 {
+                let v = beta * mat.emission * w;
+                l += v;
+                rec.add(0, len + 1, w, v);
+            }
+        }
+        if mode.lt || len >= ctx.max_len {
+            break;
+        }
+        let bsdf = &mat.bsdf;
+        if !bsdf.is_delta() {
+            if mode.connect {
+                l += direct(ctx, s, bsdf, &it, wo, &partials, beta, len, rec, stats);
+                for v in light_path {
+                    if v.len + 1 + len > ctx.max_len {
+                        break;
+                    }
+                    let (w, c) = connect(ctx, bsdf, &it, wo, &partials, v, stats);
+                    if w > 0.0 {
+                        let c = beta * c;
+                        l += c;
+                        rec.add(v.len + 1, len + 1, w, c);
+                    }
+                }
+            }
+            if let (true, Some(m)) = (mode.merge, merge) {
+                let c = beta * merge_at(ctx, bsdf, &it, wo, &partials, len, m) * ctx.vm_norm;
+                l += c;
+                rec.add(super::eye::MERGE, len + 1, 1.0, c);
+                if mode.ppm {
+                    break;
+                }
+            }
+        }
+        let Some(step) = scatter(ctx, s, bsdf, &it, wo, len - 1, TransportMode::Radiance, &mut partials, beta) else { break };
+        beta *= step.weight;
+        specular_path &= step.delta;
+        prev = it.p;
+        ray = world.spawn(&it, step.wi);
+        len += 1;
+    }
+    l
+}
+
+/// Direct light sampling at a camera vertex (s = 1), weighted and with β applied.
+#[allow(clippy::too_many_arguments)]
+fn direct<S: Sampler + ?Sized, R: Record>(
+    ctx: &Ctx,
+    s: &mut S,
+    bsdf: &Bsdf,
+    it: &Interaction,
+    wo: Vec3,
+    partials: &Partials,
+    beta: Color,
+    len: u32,
+    rec: &mut R,
+    stats: &mut TraversalStats,
+) -> Color {
+    let world = ctx.world;
+    s.set_dimension(bounce_dim(len - 1) + BOUNCE_LIGHT_SELECT);
+    let u_sel = s.next_1d();
+    let u_light = s.next_2d();
+    let Some(il) = illuminate(&world.lights, &world.scene, it.p, u_sel, u_light) else { return Color::ZERO };
+    if il.direct_pdf_w.is_nan() || il.direct_pdf_w <= 0.0 {
+        return Color::ZERO;
+    }
+    let f = bsdf.eval(&it.sp, wo, il.wi);
+    if f.max_element() <= 0.0 {
+        return Color::ZERO;
+    }
+    let bsdf_dir = bsdf.pdf(&it.sp, wo, il.wi);
+    let bsdf_rev = bsdf.pdf(&it.sp, il.wi, wo);
+    let w = weight_direct(
+        &ctx.f,
+        partials,
+        il.pick,
+        il.direct_pdf_w,
+        il.emission_pdf_w,
+        il.cos_at_light,
+        il.delta,
+        bsdf_dir,
+        bsdf_rev,
+        il.wi.dot(it.sp.ng),
+    );
+    let c = beta * f * il.radiance * (w * il.wi.dot(it.sp.ns()).abs() / (il.pick * il.direct_pdf_w));
+    if c.max_element() <= 0.0 {
+        return Color::ZERO;
+    }
+    let visible =
+        if il.dist.is_infinite() { world.unoccluded_dir(it, il.wi, stats) } else { world.visible(it, il.point, il.normal, stats) };
+    if !visible {
+        return Color::ZERO;
+    }
+    rec.add(1, len + 1, w, c);
+    c
+}
+
+/// Connects camera vertex `it` to light vertex `v`: (MIS weight, weighted
+/// contribution without the camera throughput); (0, 0) when blocked or zero.
+pub fn connect(
+    ctx: &Ctx,
+    bsdf: &Bsdf,
+    it: &Interaction,
+    wo: Vec3,
+    cam: &Partials,
+    v: &LightVertex,
+    stats: &mut TraversalStats,
+) -> (f32, Color) {
+    let none = (0.0, Color::ZERO);
+    let d = v.it.p - it.p;
+    let dist2 = d.length_squared();
+    if dist2.is_nan() || dist2 <= 0.0 {
+        return none;
+    }
+    let dir = d / dist2.sqrt();
+    let f_c = bsdf.eval(&it.sp, wo, dir);
+    if f_c.max_element() <= 0.0 {
+        return none;
+    }
+    let lbsdf = &ctx.world.material(&v.it).bsdf;
+    let f_l = lbsdf.eval(&v.it.sp, -dir, v.w_prev);
+    if f_l.max_element() <= 0.0 {
+        return none;
+    }
+    let (cos_c, cos_l) = (dir.dot(it.sp.ng), dir.dot(v.it.sp.ng));
+    let cam_to_light_a = w_to_a(bsdf.pdf(&it.sp, wo, dir), dist2, cos_l);
+    let light_to_cam_a = w_to_a(lbsdf.pdf(&v.it.sp, v.w_prev, -dir), dist2, cos_c);
+    let w = weight_connect(
+        &ctx.f,
+        &v.partials,
+        cam,
+        cam_to_light_a,
+        light_to_cam_a,
+        lbsdf.pdf(&v.it.sp, -dir, v.w_prev),
+        bsdf.pdf(&it.sp, dir, wo),
+    );
+    let g = dir.dot(it.sp.ns()).abs() * adjoint_cos(&v.it.sp, v.w_prev, -dir) / dist2;
+    let c = f_c * f_l * v.throughput * (w * g);
+    if c.max_element() <= 0.0 || !crate::math::is_finite(c) {
+        return none;
+    }
+    if !ctx.world.visible(it, v.it.p, v.it.sp.ng, stats) {
+        return none;
+    }
+    (w, c)
+}
+
+/// Σ over the pass's light vertices within the radius of w·f·throughput (before
+/// the camera throughput and the density normalisation 1/(π r² N)).
+fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, len: u32, m: &MergeSet) -> Color {
+    let r2 = ctx.radius * ctx.radius;
+    let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
+    let mut sum = Color::ZERO;
+    m.grid.for_each_candidate(it.p, |i| {
+        let v = &m.vertices[i as usize];
+        if v.len + len > ctx.max_len || v.it.p.distance_squared(it.p) > r2 {
+            return;
+        }
+        // The light arrived on the camera vertex's side of a surface facing like it.
+        if v.it.sp.ng.dot(n).abs() < MERGE_NORMAL_COS || v.w_prev.dot(n) <= 0.0 {
+            return;
+        }
+        let f = bsdf.eval(&it.sp, wo, v.w_prev);
+        if f.max_element() <= 0.0 {
+            return;
+        }
+        let w = if ctx.mode.ppm {
+            1.0
+        } else {
+            weight_merge(&ctx.f, &v.partials, cam, bsdf.pdf(&it.sp, wo, v.w_prev), bsdf.pdf(&it.sp, v.w_prev, wo))
+        };
+        sum += f * v.throughput * w;
+    });
+    sum
+}

@@ -1,0 +1,210 @@
+//! Multiple importance sampling of bidirectional techniques in constant time per
+//! connection: the recursive partial weights dVCM, dVC, dVM of Georgiev, Křivánek,
+//! Davidovič & Slusallek, "Light transport simulation with vertex connection and
+//! merging" (SIGGRAPH Asia 2012) and its technical report (§4, eqs. 31–55), in the
+//! formulation of SmallVCM.
+//!
+//! Each subpath carries three numbers updated once per vertex; the weight of a
+//! technique that joins a light subpath ending at y and a camera subpath ending at z
+//! is 1 / (w_light + 1 + w_camera), where each side's sum over the techniques that
+//! would have sampled more of the path from the *other* end comes out of its partials
+//! and the two densities of the joining step. All densities here are without Russian
+//! roulette: roulette only rescales a technique's own estimate by 1/q, so any weights
+//! computed from the path alone keep the combination unbiased (pbrt's BDPT leaves it
+//! out too; SmallVCM folds its albedo-based roulette in, which this crate's
+//! throughput-based policies would not allow). Cosines are taken with geometric
+//! normals, the area densities' true conversion factors.
+
+/// The heuristic: balance (exponent 1) or power (exponent 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Heuristic {
+    /// w_i = p_i / Σ p_j.
+    Balance,
+    /// w_i = p_i² / Σ p_j² (Veach's power heuristic, β = 2).
+    Power,
+}
+
+impl Heuristic {
+    /// Names accepted by `bdpt_mis`.
+    pub const NAMES: &'static [&'static str] = &["balance", "power"];
+
+    /// Parses `balance` / `power`.
+    pub fn parse(s: &str) -> anyhow::Result<Self> {
+        match s {
+            "balance" => Ok(Heuristic::Balance),
+            "power" => Ok(Heuristic::Power),
+            _ => anyhow::bail!("unknown bdpt_mis `{s}` (known: {})", Self::NAMES.join(", ")),
+        }
+    }
+
+    /// x^β.
+    #[inline]
+    pub fn mis(self, x: f32) -> f32 {
+        match self {
+            Heuristic::Balance => x,
+            Heuristic::Power => x * x,
+        }
+    }
+}
+
+/// Per-pass constants: which techniques are on and their relative sample counts.
+#[derive(Clone, Copy, Debug)]
+pub struct Factors {
+    /// The heuristic.
+    pub h: Heuristic,
+    /// mis(η) with η = π r² · light paths, 0 without merging.
+    pub vm_weight: f32,
+    /// mis(1/η), 0 without connections.
+    pub vc_weight: f32,
+    /// Light subpaths per pass (the light-tracing technique's sample count).
+    pub light_paths: f32,
+}
+
+impl Factors {
+    /// Factors for merging radius `r` (ignored unless `merge`), `light_paths` light
+    /// subpaths per pass.
+    pub fn new(h: Heuristic, connect: bool, merge: bool, r: f32, light_paths: f32) -> Self {
+        let eta = std::f32::consts::PI * r * r * light_paths;
+        Factors {
+            h,
+            vm_weight: if merge { h.mis(eta) } else { 0.0 },
+            vc_weight: if connect && merge { h.mis(1.0 / eta) } else { 0.0 },
+            light_paths,
+        }
+    }
+}
+
+/// The partial weights of a subpath at its last vertex.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Partials {
+    /// dVCM: techniques that differ in the last vertex's sampling.
+    pub dvcm: f32,
+    /// dVC: connection techniques further along.
+    pub dvc: f32,
+    /// dVM: merging techniques further along.
+    pub dvm: f32,
+}
+
+impl Partials {
+    /// A light subpath leaving its emitter (tech. report eqs. 31–33 before the
+    /// first hit): densities as [`super::lights::Emission`].
+    pub fn light_start(f: &Factors, direct_pdf_a: f32, emission_pdf_w: f32, cos: f32, delta: bool, finite: bool) -> Self {
+        let dvcm = f.h.mis(direct_pdf_a / emission_pdf_w);
+        let dvc = if delta { 0.0 } else { f.h.mis(if finite { cos } else { 1.0 } / emission_pdf_w) };
+        Partials { dvcm, dvc, dvm: dvc * f.vc_weight }
+    }
+
+    /// A camera subpath leaving the eye with direction density `camera_pdf_w`.
+    pub fn camera_start(f: &Factors, camera_pdf_w: f32) -> Self {
+        Partials { dvcm: f.h.mis(f.light_paths / camera_pdf_w), dvc: 0.0, dvm: 0.0 }
+    }
+
+    /// Completes the update on arriving at a vertex at squared distance `dist2`
+    /// (`None`: the first hit of a ray from a light at infinity) with geometric cosine
+    /// `cos` there.
+    #[inline]
+    pub fn arrive(&mut self, h: Heuristic, dist2: Option<f32>, cos: f32) {
+        if let Some(d2) = dist2 {
+            self.dvcm *= h.mis(d2);
+        }
+        let c = h.mis(cos.abs());
+        self.dvcm /= c;
+        self.dvc /= c;
+        self.dvm /= c;
+    }
+
+    /// Update for scattering from the last vertex (eqs. 34–36; specular 53–55): the
+    /// sampled direction's density `pdf_dir`, the reverse density `pdf_rev`, geometric
+    /// cosine `cos_out` of the new direction. A delta lobe's `pdf_dir` = `pdf_rev`.
+    #[inline]
+    pub fn scatter(&mut self, f: &Factors, cos_out: f32, pdf_dir: f32, pdf_rev: f32, specular: bool) {
+        let h = f.h;
+        if specular {
+            self.dvcm = 0.0;
+            self.dvc *= h.mis(cos_out.abs());
+            self.dvm *= h.mis(cos_out.abs());
+        } else {
+            let g = h.mis(cos_out.abs() / pdf_dir);
+            let (dvcm, dvc, dvm) = (self.dvcm, self.dvc, self.dvm);
+            self.dvc = g * (dvc * h.mis(pdf_rev) + dvcm + f.vm_weight);
+            self.dvm = g * (dvm * h.mis(pdf_rev) + dvcm * f.vc_weight + 1.0);
+            self.dvcm = h.mis(1.0 / pdf_dir);
+        }
+    }
+}
+
+/// Weight of a camera path hitting an emitter (s = 0, eq. 43); `direct_pdf_a` and
+/// `emission_pdf_w` from [`super::lights::emitter_pdfs`].
+#[inline]
+pub fn weight_hit(f: &Factors, cam: &Partials, direct_pdf_a: f32, emission_pdf_w: f32) -> f32 {
+    let w_camera = f.h.mis(direct_pdf_a) * cam.dvcm + f.h.mis(emission_pdf_w) * cam.dvc;
+    1.0 / (1.0 + w_camera)
+}
+
+/// Weight of direct sampling (s = 1, eqs. 44–45): `bsdf_dir` / `bsdf_rev` the camera
+/// vertex's densities towards / from the light, `cos_geo` the geometric cosine there.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub fn weight_direct(
+    f: &Factors,
+    cam: &Partials,
+    pick: f32,
+    direct_pdf_w: f32,
+    emission_pdf_w: f32,
+    cos_at_light: f32,
+    delta: bool,
+    bsdf_dir: f32,
+    bsdf_rev: f32,
+    cos_geo: f32,
+) -> f32 {
+    let h = f.h;
+    let w_light = if delta { 0.0 } else { h.mis(bsdf_dir / (pick * direct_pdf_w)) };
+    let w_camera =
+        h.mis(emission_pdf_w * cos_geo.abs() / (direct_pdf_w * cos_at_light)) * (f.vm_weight + cam.dvcm + cam.dvc * h.mis(bsdf_rev));
+    1.0 / (w_light + 1.0 + w_camera)
+}
+
+/// Weight of light tracing (t = 1, eq. 46): `camera_pdf_a` is the area density of the
+/// light vertex under camera sampling, `bsdf_rev` the light vertex's density towards
+/// its predecessor given the eye direction.
+#[inline]
+pub fn weight_camera(f: &Factors, light: &Partials, camera_pdf_a: f32, bsdf_rev: f32) -> f32 {
+    let w_light = f.h.mis(camera_pdf_a / f.light_paths) * (f.vm_weight + light.dvcm + light.dvc * f.h.mis(bsdf_rev));
+    1.0 / (w_light + 1.0)
+}
+
+/// Weight of connecting two inner vertices (eqs. 40–41): each side's area density of
+/// sampling the other vertex (`cam_to_light_a`: the camera vertex's BSDF sampling the
+/// light vertex) and its reverse solid-angle density.
+#[inline]
+pub fn weight_connect(
+    f: &Factors,
+    light: &Partials,
+    cam: &Partials,
+    cam_to_light_a: f32,
+    light_to_cam_a: f32,
+    light_rev: f32,
+    cam_rev: f32,
+) -> f32 {
+    let h = f.h;
+    let w_light = h.mis(cam_to_light_a) * (f.vm_weight + light.dvcm + light.dvc * h.mis(light_rev));
+    let w_camera = h.mis(light_to_cam_a) * (f.vm_weight + cam.dvcm + cam.dvc * h.mis(cam_rev));
+    1.0 / (w_light + 1.0 + w_camera)
+}
+
+/// Weight of merging a light vertex at a camera vertex (eqs. 37–39): `cam_dir` is the
+/// camera vertex's density of sampling the light vertex's incoming direction,
+/// `cam_rev` the reverse.
+#[inline]
+pub fn weight_merge(f: &Factors, light: &Partials, cam: &Partials, cam_dir: f32, cam_rev: f32) -> f32 {
+    let w_light = light.dvcm * f.vc_weight + light.dvm * f.h.mis(cam_dir);
+    let w_camera = cam.dvcm * f.vc_weight + cam.dvm * f.h.mis(cam_rev);
+    1.0 / (w_light + 1.0 + w_camera)
+}
+
+/// Converts a solid-angle density at one vertex into an area density at the other
+/// (distance² `dist2`, geometric cosine `cos_there` at the receiving vertex).
+#[inline]
+pub fn w_to_a(pdf_w: f32, dist2: f32, cos_there: f32) -> f32 {
+    pdf_w * cos_there.abs() / dist2
+}

@@ -1,0 +1,236 @@
+//! The recursive MIS weights against the heuristic computed from the full path
+//! densities, over many random paths: for every technique that can sample a path
+//! (connections s = 0 … k, merges at every inner vertex), the weight from the
+//! partials equals p_i^β / Σ p_j^β, and the weights sum to one. A planted bug (the
+//! two reverse densities of an inner connection swapped) must break the sum.
+
+use super::mis::{Factors, Heuristic, Partials, w_to_a, weight_camera, weight_connect, weight_direct, weight_hit, weight_merge};
+use crate::camera::Camera;
+use crate::material::{Bsdf, Glossy, Lambertian, ShadingPoint};
+use crate::math::Color;
+use glam::Vec3;
+use std::f32::consts::PI;
+
+struct Rng(u64);
+impl Rng {
+    fn f(&mut self) -> f32 {
+        self.0 = crate::math::mix64(self.0.wrapping_add(0x9E37_79B9_7F4A_7C15));
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn v(&mut self) -> Vec3 {
+        Vec3::new(self.f() * 2.0 - 1.0, self.f() * 2.0 - 1.0, self.f() * 2.0 - 1.0)
+    }
+}
+
+/// A random path x0 (on an area light) … x_{k−1}, x_k = the eye.
+struct Path {
+    x: Vec<Vec3>,
+    sp: Vec<ShadingPoint>,
+    bsdf: Vec<Bsdf>,
+    cam: Camera,
+    area: f32,
+    pick: f32,
+}
+
+fn random_path(rng: &mut Rng, k: usize) -> Path {
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO, Vec3::Y, 60.0, 64, 48).unwrap();
+    let mut x: Vec<Vec3> = (0..k).map(|_| rng.v()).collect();
+    x.push(cam.eye);
+    let mut sp = Vec::new();
+    let mut bsdf = Vec::new();
+    for i in 0..k {
+        let to_next = (x[i + 1] - x[i]).normalize();
+        let n = if i == 0 {
+            (to_next + 0.5 * rng.v()).normalize()
+        } else {
+            ((x[i - 1] - x[i]).normalize() + to_next + 0.6 * rng.v()).normalize()
+        };
+        // Both neighbours on the normal's side (reflection); light faces x1.
+        let ok = to_next.dot(n) > 0.05 && (i == 0 || (x[i - 1] - x[i]).normalize().dot(n) > 0.05);
+        let n = if ok { n } else { (to_next + if i == 0 { Vec3::ZERO } else { (x[i - 1] - x[i]).normalize() }).normalize() };
+        sp.push(ShadingPoint::new(n, n));
+        bsdf.push(if rng.f() < 0.5 {
+            Bsdf::Lambertian(Lambertian { albedo: Color::splat(0.7) })
+        } else {
+            Bsdf::Glossy(Glossy { kd: Color::splat(0.3), ks: Color::splat(0.5), exponent: 5.0 + 40.0 * rng.f() })
+        });
+    }
+    Path { x, sp, bsdf, cam, area: 0.2 + rng.f(), pick: 0.3 + 0.7 * rng.f() }
+}
+
+impl Path {
+    fn k(&self) -> usize {
+        self.x.len() - 1
+    }
+    fn dir(&self, from: usize, to: usize) -> Vec3 {
+        (self.x[to] - self.x[from]).normalize()
+    }
+    fn d2(&self, a: usize, b: usize) -> f32 {
+        self.x[a].distance_squared(self.x[b])
+    }
+    /// |cos| at vertex i towards vertex j (geometric normal).
+    fn cos(&self, i: usize, j: usize) -> f32 {
+        self.dir(i, j).dot(self.sp[i].ng).abs()
+    }
+    /// BSDF density at i of sampling the direction to `to` given the one to `from`.
+    fn pdf(&self, i: usize, from: usize, to: usize) -> f32 {
+        self.bsdf[i].pdf(&self.sp[i], self.dir(i, from), self.dir(i, to))
+    }
+    fn emission_pdf_w(&self) -> f32 {
+        self.pick / self.area * self.cos(0, 1) / PI
+    }
+    /// Area density of x_i sampled from the light side.
+    fn pl(&self, i: usize) -> f32 {
+        match i {
+            0 => self.pick / self.area,
+            1 => self.cos(0, 1) / PI * self.cos(1, 0) / self.d2(0, 1),
+            _ => self.pdf(i - 1, i - 2, i) * self.cos(i, i - 1) / self.d2(i - 1, i),
+        }
+    }
+    /// Area density of x_i sampled from the camera side (i ≤ k − 1).
+    fn pc(&self, i: usize) -> f32 {
+        let k = self.k();
+        if i == k - 1 {
+            self.cam.pdf_dir(self.x[i] - self.cam.eye) * self.cos(i, k) / self.d2(i, k)
+        } else {
+            self.pdf(i + 1, i + 2, i) * self.cos(i, i + 1) / self.d2(i, i + 1)
+        }
+    }
+}
+
+/// Brute force: every technique's effective density (sample counts included), in the
+/// order s = 0 … k, then merges at j = 1 … k − 1.
+fn brute(p: &Path, merge: bool, eta: f32, n_light: f32) -> Vec<f32> {
+    let k = p.k();
+    let mut q = Vec::new();
+    for s in 0..=k {
+        let mut v = if s == k { n_light } else { 1.0 };
+        for i in 0..s {
+            v *= p.pl(i);
+        }
+        for j in s..k {
+            v *= p.pc(j);
+        }
+        q.push(v);
+    }
+    if merge {
+        for j in 1..k {
+            q.push(eta * q[j] * p.pl(j));
+        }
+    }
+    q
+}
+
+/// Light partials at x_i (arrived).
+fn light_partials(p: &Path, f: &Factors, i: usize) -> Partials {
+    let mut l = Partials::light_start(f, p.pick / p.area, p.emission_pdf_w(), p.cos(0, 1), false, true);
+    for v in 1..=i {
+        if v > 1 {
+            l.scatter(f, p.cos(v - 1, v), p.pdf(v - 1, v - 2, v), p.pdf(v - 1, v, v - 2), false);
+        }
+        l.arrive(f.h, Some(p.d2(v - 1, v)), p.cos(v, v - 1));
+    }
+    l
+}
+
+/// Camera partials at x_j (arrived).
+fn camera_partials(p: &Path, f: &Factors, j: usize) -> Partials {
+    let k = p.k();
+    let mut c = Partials::camera_start(f, p.cam.pdf_dir(p.x[k - 1] - p.cam.eye));
+    for v in (j..k).rev() {
+        if v < k - 1 {
+            c.scatter(f, p.cos(v + 1, v), p.pdf(v + 1, v + 2, v), p.pdf(v + 1, v, v + 2), false);
+        }
+        c.arrive(f.h, Some(p.d2(v + 1, v)), p.cos(v, v + 1));
+    }
+    c
+}
+
+/// The weights from the partials, same order as [`brute`].
+fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
+    let k = p.k();
+    let mut w = Vec::new();
+    let c0 = camera_partials(p, f, 0);
+    w.push(weight_hit(f, &c0, p.pick / p.area, p.emission_pdf_w()));
+    let c1 = camera_partials(p, f, 1);
+    let direct_pdf_w = p.d2(0, 1) / (p.cos(0, 1) * p.area);
+    let emission_pdf_w = p.cos(0, 1) / (PI * p.area);
+    let cam_next = 2;
+    w.push(weight_direct(
+        f,
+        &c1,
+        p.pick,
+        direct_pdf_w,
+        emission_pdf_w,
+        p.cos(0, 1),
+        false,
+        p.pdf(1, cam_next, 0),
+        p.pdf(1, 0, cam_next),
+        p.cos(1, 0),
+    ));
+    for s in 2..k {
+        let (l, c) = (light_partials(p, f, s - 1), camera_partials(p, f, s));
+        let d2 = p.d2(s - 1, s);
+        let cam_to_light_a = w_to_a(p.pdf(s, s + 1, s - 1), d2, p.cos(s - 1, s));
+        let light_to_cam_a = w_to_a(p.pdf(s - 1, s - 2, s), d2, p.cos(s, s - 1));
+        let (mut light_rev, mut cam_rev) = (p.pdf(s - 1, s, s - 2), p.pdf(s, s - 1, s + 1));
+        if plant {
+            std::mem::swap(&mut light_rev, &mut cam_rev);
+        }
+        w.push(weight_connect(f, &l, &c, cam_to_light_a, light_to_cam_a, light_rev, cam_rev));
+    }
+    let l = light_partials(p, f, k - 1);
+    let camera_pdf_a = p.cam.pdf_dir(p.x[k - 1] - p.cam.eye) * p.cos(k - 1, k) / p.d2(k - 1, k);
+    w.push(weight_camera(f, &l, camera_pdf_a, p.pdf(k - 1, k, k - 2)));
+    if merge {
+        for j in 1..k {
+            let (l, c) = (light_partials(p, f, j), camera_partials(p, f, j));
+            w.push(weight_merge(f, &l, &c, p.pdf(j, j + 1, j - 1), p.pdf(j, j - 1, j + 1)));
+        }
+    }
+    w
+}
+
+/// Over many random paths of 3–7 edges: (largest |weight − brute force|, largest
+/// |Σ weights − 1|, share of paths whose sum is off by more than 1 %).
+fn check(h: Heuristic, merge: bool, plant: bool) -> (f32, f32, f32) {
+    let mut rng = Rng(0xB1D1 + merge as u64);
+    let (n_light, r) = (64.0 * 48.0, 0.01);
+    let f = Factors::new(h, true, merge, r, n_light);
+    let eta = PI * r * r * n_light;
+    let (mut worst_w, mut worst_sum, mut off) = (0.0f32, 0.0f32, 0usize);
+    let trials = 2000;
+    for t in 0..trials {
+        let p = random_path(&mut rng, 3 + t % 5);
+        let q = brute(&p, merge, eta, n_light);
+        let qb: Vec<f64> = q.iter().map(|&v| (h.mis(1.0) as f64) * (v as f64).powi(if h == Heuristic::Power { 2 } else { 1 })).collect();
+        let total: f64 = qb.iter().sum();
+        let w = recursive(&p, &f, merge, plant);
+        assert_eq!(w.len(), q.len());
+        for (wi, qi) in w.iter().zip(&qb) {
+            worst_w = worst_w.max((*wi as f64 - qi / total).abs() as f32);
+        }
+        let sum: f32 = w.iter().sum();
+        worst_sum = worst_sum.max((sum - 1.0).abs());
+        off += ((sum - 1.0).abs() > 0.01) as usize;
+    }
+    (worst_w, worst_sum, off as f32 / trials as f32)
+}
+
+#[test]
+fn recursive_weights_equal_the_heuristic_and_sum_to_one() {
+    for h in [Heuristic::Balance, Heuristic::Power] {
+        for merge in [false, true] {
+            let (w, s, _) = check(h, merge, false);
+            assert!(w < 2e-3 && s < 2e-3, "{h:?} merge {merge}: worst weight error {w}, worst sum error {s}");
+        }
+    }
+}
+
+#[test]
+fn planted_wrong_reverse_density_breaks_the_sum() {
+    for h in [Heuristic::Balance, Heuristic::Power] {
+        let (_, s, off) = check(h, true, true);
+        assert!(s > 0.1 && off > 0.3, "{h:?}: planted bug not caught (worst sum error {s}, {off} of paths off)");
+    }
+}

@@ -1,0 +1,102 @@
+//! Bidirectional estimators: `bdpt` (bidirectional path tracing, Veach 1997) and `vcm`
+//! (vertex connection and merging, Georgiev et al. 2012), organised as SmallVCM.
+//!
+//! Both run in passes. In each pass every pixel traces one light subpath (its own
+//! sampler stream, [`pass::light_stream`]) and one camera subpath (the pixel's
+//! stream; sample index = pass), so the light-tracing technique has W·H samples per
+//! pass. The camera subpath is joined to its pixel's light subpath by every
+//! technique: emitters hit (s = 0), direct light sampling (s = 1), connections of
+//! inner vertices, and the light subpath's vertices are joined to the eye (t = 1,
+//! splatted into the pixel they project to). `vcm` also merges each camera vertex
+//! with all light vertices of the pass within a shrinking radius. One MIS weight
+//! covers all techniques ([`mis`], constant cost per connection).
+//!
+//! Files: [`lights`] (emission and direct-sampling densities), [`subpath`] (light
+//! subpaths, the scattering step), [`eye`] (camera subpaths and the techniques
+//! ending on them), [`grid`] (merging), [`pass`] (one pass, deterministic splats),
+//! [`bdpt`] and [`vcm`] (the integrators), [`strategies`] (per-technique images).
+
+pub mod bdpt;
+pub mod eye;
+pub mod grid;
+pub mod lights;
+pub mod mis;
+pub mod pass;
+pub mod strategies;
+pub mod subpath;
+pub mod vcm;
+
+#[cfg(test)]
+mod mis_tests;
+
+use crate::rr::RussianRoulette;
+use crate::world::World;
+use mis::Factors;
+
+crate::params! {
+    /// Parameters shared by `bdpt` and `vcm`.
+    pub struct BidirParams {
+        /// MIS heuristic of the bidirectional techniques: `balance` (pbrt-v4, SmallVCM) or `power` (β = 2).
+        bdpt_mis: String = "balance",
+    }
+}
+
+/// Which techniques run (SmallVCM's algorithms).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mode {
+    /// Vertex connection: s = 0, 1, inner connections and light tracing.
+    pub connect: bool,
+    /// Vertex merging.
+    pub merge: bool,
+    /// Light tracing alone (plus emitters seen directly).
+    pub lt: bool,
+    /// Progressive photon mapping: merge at the first non-delta camera vertex only,
+    /// unweighted.
+    pub ppm: bool,
+}
+
+impl Mode {
+    /// `vcm_mode` names.
+    pub const NAMES: &'static [&'static str] = &["vcm", "bpt", "ppm", "lt"];
+
+    /// Parses a `vcm_mode`.
+    pub fn parse(s: &str) -> anyhow::Result<Self> {
+        let m = |connect, merge, lt, ppm| Mode { connect, merge, lt, ppm };
+        Ok(match s {
+            "vcm" => m(true, true, false, false),
+            "bpt" => m(true, false, false, false),
+            "ppm" => m(false, true, false, true),
+            "lt" => m(false, false, true, false),
+            _ => anyhow::bail!("unknown vcm_mode `{s}` (known: {})", Self::NAMES.join(", ")),
+        })
+    }
+}
+
+/// Everything a pass needs.
+pub struct Ctx<'a> {
+    /// The scene.
+    pub world: &'a World,
+    /// MIS constants.
+    pub f: Factors,
+    /// Techniques.
+    pub mode: Mode,
+    /// Most edges of a full path (`max_depth` + 1).
+    pub max_len: u32,
+    /// Russian roulette.
+    pub rr: &'a dyn RussianRoulette,
+    /// Merging radius of this pass.
+    pub radius: f32,
+    /// 1 / (π r² · light subpaths): the merging density normalisation.
+    pub vm_norm: f32,
+}
+
+impl<'a> Ctx<'a> {
+    /// Context of a pass with merging radius `radius`.
+    pub fn new(world: &'a World, h: mis::Heuristic, mode: Mode, max_depth: u32, rr: &'a dyn RussianRoulette, radius: f32) -> Self {
+        let cam = &world.scene.camera;
+        let light_paths = (cam.width * cam.height) as f32;
+        let f = Factors::new(h, mode.connect, mode.merge, radius, light_paths);
+        let vm_norm = 1.0 / (std::f32::consts::PI * radius * radius * light_paths);
+        Ctx { world, f, mode, max_len: max_depth.saturating_add(1), rr, radius, vm_norm }
+    }
+}

@@ -1,0 +1,182 @@
+//! One pass of the bidirectional estimators: a light subpath per pixel (rows in
+//! parallel; their light-tracing splats kept per row), the merging grid over all
+//! light vertices (when merging), then a camera subpath per pixel joined to its own
+//! light subpath and merged with the pass's light vertices. The splats are added row
+//! by row in row order after the camera phase, so the image is bit-identical for any
+//! thread count.
+
+use super::Ctx;
+use super::eye::{MergeSet, Record, trace_eye};
+use super::grid::HashGrid;
+use super::subpath::{LightVertex, Splat, trace_light};
+use crate::accel::TraversalStats;
+use crate::math::{Color, hash_words, is_finite};
+use crate::sampler::AnySampler;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Sampler stream of pixel `pixel`'s light subpaths (bit 62 set, bit 63 clear: never a
+/// pixel's camera stream nor `sppm`'s photon streams).
+#[inline]
+pub fn light_stream(pixel: u64) -> u64 {
+    (hash_words(&[pixel, 0xB1D1]) & !(1 << 63)) | 1 << 62
+}
+
+/// One technique's contribution at one pixel (per-strategy images).
+#[derive(Clone, Copy, Debug)]
+pub struct Item {
+    /// Pixel index.
+    pub pixel: u32,
+    /// Light vertices (or [`super::eye::MERGE`]).
+    pub s: u32,
+    /// Camera vertices.
+    pub t: u32,
+    /// MIS weight.
+    pub weight: f32,
+    /// Weighted contribution.
+    pub value: Color,
+}
+
+/// Collects items of a row when on.
+struct RowRecord {
+    on: bool,
+    pixel: u32,
+    items: Vec<Item>,
+}
+
+impl Record for RowRecord {
+    #[inline]
+    fn add(&mut self, s: u32, t: u32, weight: f32, value: Color) {
+        if self.on {
+            self.items.push(Item { pixel: self.pixel, s, t, weight, value });
+        }
+    }
+}
+
+/// A pass's image (radiance per pixel, f64) and counters.
+#[derive(Default)]
+pub struct PassOut {
+    /// Pixel estimates of this pass.
+    pub pixels: Vec<DVec3>,
+    /// Rays traced.
+    pub traversal: TraversalStats,
+    /// Non-finite samples dropped.
+    pub nonfinite: u64,
+    /// Light vertices stored.
+    pub light_vertices: u64,
+    /// Seconds in the light phase (subpaths, splats), the grid and the camera phase.
+    pub t_light: f64,
+    /// Grid build seconds.
+    pub t_grid: f64,
+    /// Camera phase seconds.
+    pub t_eye: f64,
+    /// Technique contributions, when recorded.
+    pub items: Vec<Item>,
+}
+
+struct LightRow {
+    vertices: Vec<LightVertex>,
+    /// End of each pixel's light subpath in `vertices`.
+    ends: Vec<u32>,
+    splats: Vec<Splat>,
+    stats: TraversalStats,
+}
+
+/// Runs pass `index` (the sample index of every pixel's camera and light streams).
+pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler, index: u64, record: bool) -> PassOut {
+    let cam = &ctx.world.scene.camera;
+    let (w, h) = (cam.width, cam.height);
+    let t0 = Instant::now();
+    let rows: Vec<LightRow> = (0..h)
+        .into_par_iter()
+        .with_max_len(1)
+        .map_init(
+            || light_sampler.clone(),
+            |s, y| {
+                let mut row = LightRow {
+                    vertices: Vec::new(),
+                    ends: Vec::with_capacity(w as usize),
+                    splats: Vec::new(),
+                    stats: TraversalStats::default(),
+                };
+                crate::sampler::with_sampler!(&mut *s, s => {
+                    for x in 0..w {
+                        let pixel = y as u64 * w as u64 + x as u64;
+                        trace_light(ctx, s, light_stream(pixel), index, &mut row.vertices, &mut row.splats, &mut row.stats);
+                        row.ends.push(row.vertices.len() as u32);
+                    }
+                });
+                row
+            },
+        )
+        .collect();
+    let mut out = PassOut { t_light: t0.elapsed().as_secs_f64(), ..Default::default() };
+    out.light_vertices = rows.iter().map(|r| r.vertices.len() as u64).sum();
+    let t1 = Instant::now();
+    let (all, grid) = if ctx.mode.merge {
+        let mut all = Vec::with_capacity(out.light_vertices as usize);
+        for r in &rows {
+            all.extend_from_slice(&r.vertices);
+        }
+        let grid = HashGrid::build(all.iter().map(|v| v.it.p), ctx.radius);
+        (all, grid)
+    } else {
+        (Vec::new(), HashGrid::default())
+    };
+    let merge = ctx.mode.merge.then_some(MergeSet { vertices: &all, grid: &grid });
+    out.t_grid = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let eye_rows: Vec<(Vec<DVec3>, TraversalStats, u64, Vec<Item>)> = rows
+        .par_iter()
+        .with_max_len(1)
+        .enumerate()
+        .map_init(
+            || cam_sampler.clone(),
+            |s, (y, lrow)| {
+                let mut st = TraversalStats::default();
+                let mut bad = 0u64;
+                let mut rec = RowRecord { on: record, pixel: 0, items: Vec::new() };
+                let mut px = Vec::with_capacity(w as usize);
+                crate::sampler::with_sampler!(&mut *s, s => {
+                    for x in 0..w {
+                        let start = if x == 0 { 0 } else { lrow.ends[x as usize - 1] as usize };
+                        let path = &lrow.vertices[start..lrow.ends[x as usize] as usize];
+                        rec.pixel = y as u32 * w + x;
+                        let l = trace_eye(ctx, s, x, y as u32, index, path, merge.as_ref(), &mut rec, &mut st);
+                        if is_finite(l) {
+                            px.push(l.as_dvec3());
+                        } else {
+                            bad += 1;
+                            px.push(DVec3::ZERO);
+                        }
+                    }
+                });
+                (px, st, bad, rec.items)
+            },
+        )
+        .collect();
+    let mut pixels = Vec::with_capacity((w * h) as usize);
+    for (px, st, bad, items) in eye_rows {
+        pixels.extend(px);
+        out.traversal.add(&st);
+        out.nonfinite += bad;
+        out.items.extend(items);
+    }
+    for r in &rows {
+        out.traversal.add(&r.stats);
+        for sp in &r.splats {
+            if is_finite(sp.value) {
+                pixels[sp.pixel as usize] += sp.value.as_dvec3();
+                if record {
+                    out.items.push(Item { pixel: sp.pixel, s: sp.s, t: 1, weight: sp.weight, value: sp.value });
+                }
+            } else {
+                out.nonfinite += 1;
+            }
+        }
+    }
+    out.t_eye = t2.elapsed().as_secs_f64();
+    out.pixels = pixels;
+    out
+}

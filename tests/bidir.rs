@@ -1,0 +1,157 @@
+//! `bdpt` and `vcm` against `path`, and their invariants.
+//!
+//! Images are compared on 16-px block means (8-px on the small images) over the
+//! blocks `path` does not leave black: a block passes within 4 standard errors (the
+//! spread of the per-pixel differences) plus 2 % of the reference, and the image mean
+//! must be within 2 %.
+
+use photonlab::compare::{BlockReport, compare_blocks};
+use photonlab::config::RenderConfig;
+use photonlab::film::Film;
+use photonlab::pipeline::{render_scene, render_scene_with_aovs};
+use photonlab::scene::builtin::{BUILTINS, builtin};
+
+fn render(scene: &str, cfg: RenderConfig) -> Film {
+    render_scene(builtin(scene).unwrap(), &cfg, true).unwrap().film
+}
+
+fn cfg(integrator: &str, res: u32, spp: u32, seed: u64) -> RenderConfig {
+    RenderConfig { integrator: integrator.into(), spp, resolution: Some([res, res]), seed, ..Default::default() }
+}
+
+fn check(name: &str, rep: &BlockReport) {
+    let bad = rep.outliers(4.0, 0.02);
+    if let Some(w) = rep.worst() {
+        eprintln!(
+            "{name}: mean ratio {:.4}, worst block {:?} rel {:+.4}, {} of {} outside",
+            rep.mean_ratio,
+            w.at,
+            w.rel(),
+            bad.len(),
+            rep.blocks.len()
+        );
+    }
+    assert!(rep.mean_ratio.is_nan() || (rep.mean_ratio - 1.0).abs() < 0.02, "{name}: image mean ratio {:.4}", rep.mean_ratio);
+    assert!(bad.is_empty(), "{name}: blocks beyond 4 std err + 2 %: {bad:?}");
+}
+
+/// Every built-in: `bdpt` (balance heuristic, the default) within noise of `path`
+/// (the million-triangle `displaced-sphere` in a test of its own, for its build time).
+#[test]
+fn bdpt_agrees_with_path_on_every_builtin() {
+    for &scene in BUILTINS.iter().filter(|&&s| s != "displaced-sphere") {
+        bdpt_against_path(scene);
+    }
+}
+
+#[test]
+fn bdpt_agrees_with_path_on_displaced_sphere() {
+    bdpt_against_path("displaced-sphere");
+}
+
+fn bdpt_against_path(scene: &str) {
+    {
+        // sun-slats is lit by one bounce off thin slats: noisier, so 4× the samples.
+        let (res, k) = match scene {
+            "displaced-sphere" => (24, 1),
+            "sun-slats" => (24, 4),
+            _ => (32, 1),
+        };
+        let reference = render(scene, cfg("path", res, 512 * k, 11));
+        let img = render(scene, cfg("bdpt", res, 128 * k, 12));
+        check(&format!("bdpt {scene}"), &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+    }
+}
+
+/// The power heuristic and a finite `max_depth` with roulette off change the weights
+/// and the techniques' path-length limits, not the expectation.
+#[test]
+fn bdpt_power_heuristic_and_depth_limit_agree_with_path() {
+    let base = |i: &str| RenderConfig { rr: "off".into(), max_depth: Some(3), ..cfg(i, 32, 0, 0) };
+    let reference = render("cornell-glass", RenderConfig { spp: 512, seed: 3, ..base("path") });
+    let img = render("cornell-glass", RenderConfig { spp: 128, seed: 4, ..base("bdpt") }.with("bdpt_mis", "power"));
+    check("bdpt power depth 3", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+}
+
+/// Light tracing alone (`vcm_mode = "lt"`, plus emitters seen directly) on diffuse scenes.
+#[test]
+fn light_tracing_alone_agrees_with_path_on_diffuse_scenes() {
+    for scene in ["cornell", "cornell-contact"] {
+        let reference = render(scene, cfg("path", 32, 512, 21));
+        let img = render(scene, RenderConfig { seed: 22, ..cfg("vcm", 32, 1, 0) }.with("vcm_mode", "lt").with("passes", 256));
+        check(&format!("lt {scene}"), &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+    }
+}
+
+/// `vcm` with merging converges to `path`: at 128 passes of 32² on the glass box the
+/// merging bias is below the noise.
+#[test]
+fn vcm_agrees_with_path() {
+    let reference = render("cornell-glass", cfg("path", 32, 512, 31));
+    let img = render("cornell-glass", RenderConfig { seed: 32, ..cfg("vcm", 32, 1, 0) }.with("passes", 128));
+    check("vcm cornell-glass", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+}
+
+/// Same seed ⇒ same bits for 1 and 2 threads (the light-tracing splats included).
+#[test]
+fn images_are_bit_identical_for_any_thread_count() {
+    for (integrator, extra) in [("bdpt", None), ("vcm", Some(4u32))] {
+        let run = |threads| {
+            let c = RenderConfig { threads, ..cfg(integrator, 40, 4, 5) };
+            let c = if let Some(p) = extra { c.with("passes", p) } else { c };
+            render("cornell-glass", c).pixels
+        };
+        assert!(run(1) == run(2), "{integrator}: 1 and 2 threads differ");
+    }
+}
+
+/// With every path length shown (max_depth 4), the weighted per-technique images add
+/// up to the image; the unweighted ones are each an estimate of the same light (here:
+/// direct light at the first hit by light sampling s = 1, BSDF sampling s = 0 and light
+/// tracing t = 1, within 10 % in the mean).
+#[test]
+fn strategy_images_add_up_to_the_image() {
+    let c = RenderConfig { max_depth: Some(4), ..cfg("bdpt", 24, 8, 9) };
+    let o = render_scene_with_aovs(builtin("cornell").unwrap(), &c, true, &["strategies".to_string()]).unwrap();
+    let names: Vec<&str> = o.aovs.iter().map(|(n, _)| n.as_str()).collect();
+    assert!(names.contains(&"strategies-s1-t2") && names.contains(&"strategies-s3-t1-unweighted"), "{names:?}");
+    let mut sum = vec![glam::DVec3::ZERO; o.film.pixels.len()];
+    for (n, f) in &o.aovs {
+        if !n.ends_with("unweighted") {
+            for (s, p) in sum.iter_mut().zip(&f.pixels) {
+                *s += p.as_dvec3();
+            }
+        }
+    }
+    for (s, p) in sum.iter().zip(&o.film.pixels) {
+        assert!((*s - p.as_dvec3()).abs().max_element() <= 1e-4 * (1.0 + p.max_element() as f64), "{s} vs {p}");
+    }
+    let mean = |n: &str| o.aovs.iter().find(|(a, _)| a == n).unwrap().1.mean().element_sum();
+    let (a, b, c) = (mean("strategies-s1-t2-unweighted"), mean("strategies-s0-t3-unweighted"), mean("strategies-s2-t1-unweighted"));
+    assert!(
+        (a / b - 1.0).abs() < 0.1 && (c / b - 1.0).abs() < 0.1,
+        "direct light by light sampling {a}, BSDF sampling {b}, light tracing {c}"
+    );
+}
+
+/// Interrupted and resumed from a checkpoint = uninterrupted, bit for bit.
+#[test]
+fn vcm_resumes_bit_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("v.checkpoint.json").to_string_lossy().into_owned();
+    let c = |passes: u32| cfg("vcm", 24, 1, 8).with("passes", passes).with("checkpoint_file", file.clone());
+    let full = render("cornell", c(6));
+    render("cornell", c(4).with("checkpoint_every", 2));
+    let resumed = render("cornell", c(6).with("resume", true));
+    assert!(full.pixels == resumed.pixels);
+}
+
+/// Bad settings are named.
+#[test]
+fn bad_settings_are_named() {
+    let err = |c: RenderConfig| render_scene(builtin("cornell").unwrap(), &c, true).err().unwrap().to_string();
+    assert!(err(cfg("vcm", 8, 1, 0).with("vcm_mode", "bdpt")).contains("vcm_mode"));
+    assert!(err(cfg("bdpt", 8, 1, 0).with("bdpt_mis", "max")).contains("bdpt_mis"));
+    assert!(err(cfg("vcm", 8, 1, 0).with("vcm_radius", -1.0)).contains("vcm_radius"));
+    assert!(err(cfg("bdpt", 8, 1, 0).with("vcm_mode", "lt")).contains("vcm_mode"));
+}
