@@ -84,7 +84,7 @@ impl PpmIntegrator {
         r2 *= r2;
         let mut rc2 = self.photon.p.caustic_max_radius.unwrap_or(0.025 * r_scene) as f64;
         rc2 *= rc2;
-        let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.is_delta());
+        let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.has_delta());
         let alpha = self.prog.alpha as f64;
         let mut sum = vec![DVec3::ZERO; (cam.width * cam.height) as usize];
         let mut film = Film::new(cam.width, cam.height);

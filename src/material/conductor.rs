@@ -52,7 +52,8 @@ mod tests {
 
     #[test]
     fn one_sided_mirror_with_conductor_fresnel() {
-        let c = Bsdf::Conductor(Conductor { eta: Color::new(0.2, 0.9, 1.1), k: Color::new(3.9, 2.4, 1.9), specular_reflectance: Color::ONE });
+        let c =
+            Bsdf::Conductor(Conductor { eta: Color::new(0.2, 0.9, 1.1), k: Color::new(3.9, 2.4, 1.9), specular_reflectance: Color::ONE });
         let sp = ShadingPoint::new(Vec3::Z, Vec3::Z);
         let wo = Vec3::new(0.6, 0.0, 0.8);
         let s = c.sample(&sp, wo, 0.3, [0.1, 0.2], TransportMode::Radiance).unwrap();

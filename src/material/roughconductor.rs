@@ -101,7 +101,11 @@ mod tests {
             // Lower bounds: the single-scattering loss (separable Smith G, reflections below
             // the horizon), 0.867 for GGX α = 0.3 at cos 0.9 by an independent Monte Carlo
             // of the formula; GGX's long tails lose more than Beckmann.
-            let bounds = if kind == MicrofacetType::Ggx { [(0.05f32, 0.985f32), (0.3, 0.8), (0.8, 0.3)] } else { [(0.05, 0.985), (0.3, 0.9), (0.8, 0.55)] };
+            let bounds = if kind == MicrofacetType::Ggx {
+                [(0.05f32, 0.985f32), (0.3, 0.8), (0.8, 0.3)]
+            } else {
+                [(0.05, 0.985), (0.3, 0.9), (0.8, 0.55)]
+            };
             for (alpha, min_albedo) in bounds {
                 let b = Bsdf::RoughConductor(RoughConductor {
                     distribution: kind,

@@ -25,11 +25,7 @@ impl TwoSided {
     /// The side `wo` sees and the shading point as that side's BSDF sees it.
     #[inline]
     pub(super) fn side(&self, sp: &ShadingPoint, wo: Vec3) -> (&Bsdf, ShadingPoint) {
-        if wo.dot(sp.ng) >= 0.0 {
-            (&self.front, *sp)
-        } else {
-            (&self.back, ShadingPoint { frame: Frame::new(-sp.ns()), ng: -sp.ng })
-        }
+        if wo.dot(sp.ng) >= 0.0 { (&self.front, *sp) } else { (&self.back, ShadingPoint { frame: Frame::new(-sp.ns()), ng: -sp.ng }) }
     }
 
     /// Whether `wi` lies on `wo`'s side (no transmission through a two-sided sheet).
