@@ -1,10 +1,11 @@
-//! Mitsuba 3's BSDFs in every integrator: the glossy Cornell box with a rough-plastic
-//! floor (GGX), a smooth-plastic block (a delta coating over a base: a mixed BSDF) and
-//! a rough gold sphere (Beckmann). `photon` (default gather), `sppm` and `ppm` must
+//! Mitsuba 3's BSDFs in every integrator: the glossy Cornell box with a smooth-plastic
+//! floor (a delta coating over a base: a mixed BSDF, whose coating mirrors the room),
+//! a rough-plastic block (GGX, nonlinear) and a rough gold sphere (Beckmann). `photon` (default gather), `sppm` and `ppm` must
 //! agree with `path` on 16-px block means within 4 standard errors plus a floor
 //! proportional to the reference (the residual bias of the stated photon budget), the
-//! image mean within 2 %. A planted control — the photon integrator made to drop the
-//! glossy part (`diffuse only` at gathers) — must fail the same check.
+//! image mean within 2 %. A planted control — `sppm` on the scene with the plastics'
+//! coatings removed, as an integrator that dropped their delta and glossy lobes would
+//! render it — must fail the same check.
 
 use photonlab::compare::{BlockReport, compare_blocks};
 use photonlab::config::RenderConfig;
@@ -22,18 +23,18 @@ pub fn scene() -> Scene {
     let mut s = builtin("cornell-glossy").unwrap();
     for m in &mut s.materials {
         match m.name.as_str() {
-            "glossy-floor" => {
+            "glossy-floor" => m.bsdf = Bsdf::Plastic(Plastic::new(Color::new(0.5, 0.45, 0.4), Color::ONE, 1.5, 1.0, false)),
+            "glossy-box" => {
                 m.bsdf = Bsdf::RoughPlastic(RoughPlastic::new(
                     MicrofacetType::Ggx,
                     0.2,
-                    Color::new(0.5, 0.45, 0.4),
+                    Color::new(0.45, 0.44, 0.42),
                     Color::ONE,
                     1.49,
                     1.000_277,
-                    false,
+                    true,
                 ))
             }
-            "glossy-box" => m.bsdf = Bsdf::Plastic(Plastic::new(Color::new(0.45, 0.44, 0.42), Color::ONE, 1.5, 1.0, true)),
             "glossy-sphere" => {
                 m.bsdf = Bsdf::RoughConductor(RoughConductor {
                     distribution: MicrofacetType::Beckmann,

@@ -218,7 +218,7 @@ impl PhotonIntegrator {
         let wo = -ray.d.normalize();
         // Delta lobes (all of a mirror's or glass's; a plastic coating's or a mask's
         // null lobe besides the other lobes shaded below) are followed as branches.
-        if bsdf.has_delta() {
+        if bsdf.has_delta() && (sdepth < MAX_SPECULAR || bsdf.is_delta()) {
             if sdepth >= MAX_SPECULAR {
                 return l;
             }
