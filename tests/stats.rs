@@ -60,6 +60,17 @@ fn every_sampling_routine_matches_its_pdf() {
         "sobol/cosine_hemisphere",
         "sobol/phong/n10",
         "planted/sobol/cosine_vs_uniform_pdf",
+        "microfacet/ggx_a0.5_theta70",
+        "microfacet/beckmann_a0.1_theta30",
+        "roughconductor/ggx_a0.3_theta30",
+        "roughdielectric/beckmann_a0.3_inside_near_tir",
+        "roughplastic/beckmann_a0.2_theta45",
+        "plastic/base_theta50",
+        "mask/roughconductor_opacity0.6",
+        "twosided/roughplastic_back",
+        "planted/roughconductor_flipped_half_vector",
+        "planted/roughconductor_ggx_a0.3_vs_pdf_a0.33",
+        "planted/roughplastic_lobe_weight",
     ] {
         assert!(rows.iter().any(|r| r.test == format!("chi2/{name}")), "missing chi2/{name}");
     }

@@ -117,7 +117,7 @@ impl PpmIntegrator {
         let sq = |r: Option<f32>| r.map(|r| (r as f64).powi(2));
         let (mut r2, mut rc2) = (sq(self.photon.p.max_radius), sq(self.photon.p.caustic_max_radius));
         let mut r2_first = r2;
-        let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.is_delta());
+        let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.has_delta());
         let alpha = self.prog.alpha as f64;
         let mut sum = vec![DVec3::ZERO; (cam.width * cam.height) as usize];
         let mut film = Film::new(cam.width, cam.height);

@@ -271,15 +271,32 @@ impl SppmIntegrator {
         let mut depth = 0u32;
         while let Some(it) = world.intersect(&ray, stats) {
             let mat = world.material(&it);
-            // Every vertex before the visible point was reached by the camera or a
-            // delta lobe, so emission counts fully.
+            // Every vertex before the visible point was reached by the camera, a delta
+            // lobe or a glossy-only surface passed through by BSDF sampling (which has
+            // no light sampling), so emission counts fully.
             if it.front && mat.is_emitter() {
                 l += beta * mat.emission;
             }
             let wo = -ray.d.normalize();
             let bsdf = &mat.bsdf;
             let dim = bounce_dim(depth);
-            if !bsdf.is_delta() {
+            // As pbrt-v4: the visible point is the first vertex with a diffuse part (or
+            // any non-delta one at the depth limit). A mixed BSDF's delta lobes are
+            // followed with their sampling probability p instead (same `u_lobe` as
+            // the sample below), the visible point weighted by 1/(1 − p).
+            let mut stop = !bsdf.is_delta() && (!bsdf.is_glossy_only() || depth >= max_depth);
+            if stop {
+                let p = if depth < max_depth { bsdf.delta_probability(&it.sp, wo) } else { 0.0 };
+                if p > 0.0 {
+                    s.set_dimension(dim + BOUNCE_BSDF_LOBE);
+                    if s.next_1d() < p {
+                        stop = false;
+                    } else {
+                        beta /= 1.0 - p;
+                    }
+                }
+            }
+            if stop {
                 if self.set.p.sppm_direct == "trace" {
                     let ds = &mut *direct;
                     // `direct_samples` shadow rays, stratified by the direct sampler on a

@@ -1,4 +1,8 @@
-//! Surface materials (the scene contract's five types) and their BSDFs.
+//! Surface materials and their BSDFs: the scene contract's five types and Mitsuba 3's
+//! BSDFs (`conductor`, `roughconductor`, `plastic`, `roughplastic`, `roughdielectric`,
+//! `thindielectric`, `twosided`, `mask`, one file each, with Mitsuba's definitions of
+//! evaluation, sampling and pdf; `microfacet.rs` and `fresnel.rs` are their shared
+//! terms).
 //!
 //! Materials are a closed set fixed by the scene contract, so they are an enum with
 //! static dispatch rather than a plug-in trait. Every BSDF works in world space on a
@@ -7,15 +11,35 @@
 //! The geometric normal decides sidedness; the shading normal (interpolated `vn`)
 //! decides the lobe shape, as in pbrt.
 
+mod conductor;
 mod dielectric;
+pub mod fresnel;
 mod glossy;
 mod lambertian;
+mod mask;
+pub mod microfacet;
 mod mirror;
+mod plastic;
+mod roughconductor;
+mod roughdielectric;
+mod roughplastic;
+mod split;
+mod thindielectric;
+mod twosided;
 
+pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use glossy::Glossy;
 pub use lambertian::{Lambertian, Reflects as LambertianReflects};
+pub use mask::Mask;
+pub use microfacet::MicrofacetType;
 pub use mirror::Mirror;
+pub use plastic::Plastic;
+pub use roughconductor::RoughConductor;
+pub use roughdielectric::RoughDielectric;
+pub use roughplastic::RoughPlastic;
+pub use thindielectric::ThinDielectric;
+pub use twosided::TwoSided;
 
 use crate::math::{Color, Frame};
 use glam::Vec3;
@@ -79,7 +103,27 @@ pub enum Bsdf {
     Dielectric(Dielectric),
     /// Modified Phong + Lambertian.
     Glossy(Glossy),
+    /// Smooth conductor (Mitsuba `conductor`).
+    Conductor(Conductor),
+    /// Microfacet conductor (Mitsuba `roughconductor`).
+    RoughConductor(RoughConductor),
+    /// Smooth coating over a diffuse base (Mitsuba `plastic`).
+    Plastic(Plastic),
+    /// Rough coating over a diffuse base (Mitsuba `roughplastic`).
+    RoughPlastic(RoughPlastic),
+    /// Microfacet dielectric (Mitsuba `roughdielectric`).
+    RoughDielectric(RoughDielectric),
+    /// Thin dielectric sheet (Mitsuba `thindielectric`).
+    ThinDielectric(ThinDielectric),
+    /// Nested BSDF(s) seen from both sides (Mitsuba `twosided`).
+    TwoSided(TwoSided),
+    /// Opacity cut-out (Mitsuba `mask`).
+    Mask(Mask),
 }
+
+/// Most delta lobes any BSDF has (a mask's null lobe over a nested mask over a
+/// thin sheet's two).
+pub const MAX_BRANCHES: usize = 4;
 
 /// A surface material: a BSDF plus optional front-side emission.
 #[derive(Clone, Debug, PartialEq)]
@@ -109,6 +153,17 @@ pub(crate) fn same_side(sp: &ShadingPoint, wo: Vec3, wi: Vec3) -> bool {
     wo.dot(sp.ng) * wi.dot(sp.ng) > 0.0
 }
 
+/// Local directions of a one-sided (front only) reflective lobe: `None` unless both
+/// directions are on the geometric front and above the shading horizon.
+#[inline]
+pub(crate) fn front_pair(sp: &ShadingPoint, wo: Vec3, wi: Vec3) -> Option<(Vec3, Vec3)> {
+    if wo.dot(sp.ng) <= 0.0 || wi.dot(sp.ng) <= 0.0 {
+        return None;
+    }
+    let (lo, li) = (sp.frame.to_local(wo), sp.frame.to_local(wi));
+    if lo.z <= 0.0 || li.z <= 0.0 { None } else { Some((lo, li)) }
+}
+
 /// Local directions for a two-sided reflective lobe: flips both so that wo is on the
 /// +z side of the shading frame.
 #[inline]
@@ -129,7 +184,16 @@ impl Bsdf {
         match self {
             Bsdf::Lambertian(m) => m.eval(sp, wo, wi),
             Bsdf::Glossy(m) => m.eval(sp, wo, wi),
-            Bsdf::Mirror(_) | Bsdf::Dielectric(_) => Color::ZERO,
+            Bsdf::Mirror(_) | Bsdf::Dielectric(_) | Bsdf::Conductor(_) | Bsdf::ThinDielectric(_) => Color::ZERO,
+            Bsdf::RoughConductor(m) => m.eval(sp, wo, wi),
+            Bsdf::Plastic(m) => m.eval(sp, wo, wi),
+            Bsdf::RoughPlastic(m) => m.eval(sp, wo, wi),
+            Bsdf::RoughDielectric(m) => m.eval(sp, wo, wi),
+            Bsdf::TwoSided(t) => {
+                let (b, s) = t.side(sp, wo);
+                if TwoSided::same_side(sp, wo, wi) { b.eval(&s, wo, wi) } else { Color::ZERO }
+            }
+            Bsdf::Mask(m) => m.nested.eval(sp, wo, wi) * m.opacity,
         }
     }
 
@@ -139,7 +203,16 @@ impl Bsdf {
         match self {
             Bsdf::Lambertian(m) => m.pdf(sp, wo, wi),
             Bsdf::Glossy(m) => m.pdf(sp, wo, wi),
-            Bsdf::Mirror(_) | Bsdf::Dielectric(_) => 0.0,
+            Bsdf::Mirror(_) | Bsdf::Dielectric(_) | Bsdf::Conductor(_) | Bsdf::ThinDielectric(_) => 0.0,
+            Bsdf::RoughConductor(m) => m.pdf(sp, wo, wi),
+            Bsdf::Plastic(m) => m.pdf(sp, wo, wi),
+            Bsdf::RoughPlastic(m) => m.pdf(sp, wo, wi),
+            Bsdf::RoughDielectric(m) => m.pdf(sp, wo, wi),
+            Bsdf::TwoSided(t) => {
+                let (b, s) = t.side(sp, wo);
+                if TwoSided::same_side(sp, wo, wi) { b.pdf(&s, wo, wi) } else { 0.0 }
+            }
+            Bsdf::Mask(m) => m.nested.pdf(sp, wo, wi) * m.opacity,
         }
     }
 
@@ -151,16 +224,41 @@ impl Bsdf {
             Bsdf::Glossy(m) => m.sample(sp, wo, u_lobe, u),
             Bsdf::Mirror(m) => m.sample(sp, wo),
             Bsdf::Dielectric(m) => m.sample(sp, wo, u_lobe, mode),
+            Bsdf::Conductor(m) => m.sample(sp, wo),
+            Bsdf::RoughConductor(m) => m.sample(sp, wo, u),
+            Bsdf::Plastic(m) => m.sample(sp, wo, u_lobe, u),
+            Bsdf::RoughPlastic(m) => m.sample(sp, wo, u_lobe, u),
+            Bsdf::RoughDielectric(m) => m.sample(sp, wo, u_lobe, u, mode),
+            Bsdf::ThinDielectric(m) => m.sample(sp, wo, u_lobe),
+            Bsdf::TwoSided(t) => {
+                let (b, s) = t.side(sp, wo);
+                b.sample(&s, wo, u_lobe, u, mode).filter(|r| TwoSided::same_side(sp, wo, r.wi))
+            }
+            Bsdf::Mask(m) => {
+                let pn = m.null_prob();
+                if u_lobe < pn {
+                    let wi = Mask::pass(sp, wo);
+                    let cos = wi.dot(sp.ns()).abs().max(1e-8);
+                    return Some(BsdfSample { wi, f: Color::splat(pn / cos), pdf: pn, weight: Color::ONE, delta: true });
+                }
+                let u2 = ((u_lobe - pn) / m.opacity).min(crate::math::ONE_MINUS_EPSILON);
+                let mut r = m.nested.sample(sp, wo, u2, u, mode)?;
+                r.f *= m.opacity;
+                r.pdf *= m.opacity;
+                Some(r)
+            }
         }
     }
 
     /// Every delta lobe with its weight (f·|cos|/pdf times the lobe probability):
     /// the branches a Whitted-style tracer follows. Empty for non-delta BSDFs.
-    pub fn specular_branches(&self, sp: &ShadingPoint, wo: Vec3, mode: TransportMode) -> ([(Vec3, Color); 2], usize) {
-        let mut out = [(Vec3::ZERO, Color::ZERO); 2];
+    /// Mixed BSDFs (plastic's coating, a mask's null lobe) give their delta lobes alone.
+    pub fn specular_branches(&self, sp: &ShadingPoint, wo: Vec3, mode: TransportMode) -> ([(Vec3, Color); MAX_BRANCHES], usize) {
+        let mut out = [(Vec3::ZERO, Color::ZERO); MAX_BRANCHES];
         let mut n = 0;
-        if !self.is_delta() {
-            return (out, 0);
+        if !matches!(self, Bsdf::Mirror(_) | Bsdf::Dielectric(_)) {
+            self.push_delta_branches(sp, wo, mode, Color::ONE, &mut out, &mut n);
+            return (out, n);
         }
         if let Some(r) = self.sample(sp, wo, 0.0, [0.0; 2], mode) {
             out[n] = (r.wi, r.weight * r.pdf);
@@ -179,7 +277,12 @@ impl Bsdf {
     /// True when every lobe is a delta (no light sampling possible).
     #[inline]
     pub fn is_delta(&self) -> bool {
-        matches!(self, Bsdf::Mirror(_) | Bsdf::Dielectric(_))
+        match self {
+            Bsdf::Mirror(_) | Bsdf::Dielectric(_) | Bsdf::Conductor(_) | Bsdf::ThinDielectric(_) => true,
+            Bsdf::TwoSided(t) => t.front.is_delta() && t.back.is_delta(),
+            Bsdf::Mask(m) => m.nested.is_delta(),
+            _ => false,
+        }
     }
 
     /// Hemispherical reflectance estimate used by the `albedo` Russian-roulette
@@ -190,6 +293,14 @@ impl Bsdf {
             Bsdf::Glossy(m) => m.kd + m.ks,
             Bsdf::Mirror(m) => m.reflectance,
             Bsdf::Dielectric(m) => m.tint.max(Color::splat(dielectric::fresnel(1.0, m.ior))),
+            Bsdf::Conductor(m) => m.specular_reflectance * conductor::fresnel_rgb(1.0, m.eta, m.k),
+            Bsdf::RoughConductor(m) => m.specular_reflectance * conductor::fresnel_rgb(1.0, m.eta, m.k),
+            Bsdf::Plastic(m) => m.albedo(),
+            Bsdf::RoughPlastic(m) => m.albedo(),
+            Bsdf::RoughDielectric(m) => m.specular_reflectance.max(m.specular_transmittance),
+            Bsdf::ThinDielectric(m) => m.specular_reflectance.max(m.specular_transmittance),
+            Bsdf::TwoSided(t) => t.front.albedo().max(t.back.albedo()),
+            Bsdf::Mask(m) => m.nested.albedo() * m.opacity + Color::splat(m.null_prob()),
         }
     }
 
@@ -199,14 +310,20 @@ impl Bsdf {
     pub fn eval_glossy(&self, sp: &ShadingPoint, wo: Vec3, wi: Vec3) -> Color {
         match self {
             Bsdf::Glossy(m) => m.eval_lobe(sp, wo, wi),
-            _ => Color::ZERO,
+            Bsdf::Lambertian(_) | Bsdf::Mirror(_) | Bsdf::Dielectric(_) => Color::ZERO,
+            _ => self.eval_glossy_ext(sp, wo, wi),
         }
     }
 
-    /// True when the BSDF has a glossy lobe (Phong with Ks > 0).
+    /// True when the BSDF has a glossy part: Phong with Ks > 0, and every non-delta
+    /// part of Mitsuba's BSDFs that is not exactly Lambertian (see [`Bsdf::diffuse_albedo`]).
     #[inline]
     pub fn has_glossy(&self) -> bool {
-        matches!(self, Bsdf::Glossy(m) if m.ks.max_element() > 0.0)
+        match self {
+            Bsdf::Glossy(m) => m.ks.max_element() > 0.0,
+            Bsdf::Lambertian(_) | Bsdf::Mirror(_) | Bsdf::Dielectric(_) => false,
+            _ => self.has_glossy_ext(),
+        }
     }
 
     /// Samples the glossy lobe alone: wi and f_glossy·cos/pdf. `None` when there is
@@ -215,16 +332,23 @@ impl Bsdf {
     pub fn sample_glossy(&self, sp: &ShadingPoint, wo: Vec3, u: [f32; 2]) -> Option<(Vec3, Color)> {
         match self {
             Bsdf::Glossy(m) => m.sample_lobe(sp, wo, u),
-            _ => None,
+            Bsdf::Lambertian(_) | Bsdf::Mirror(_) | Bsdf::Dielectric(_) => None,
+            _ => self.sample_glossy_ext(sp, wo, u),
         }
     }
 
     /// Diffuse part's albedo (what a photon map can represent): Kd for Lambertian
-    /// and glossy, zero for specular materials.
+    /// and glossy, zero for specular materials. Only exactly Lambertian parts count:
+    /// a plastic's base is seen through Fresnel terms that depend on wi, so it belongs
+    /// to the glossy part (gathered with rays drawn from it), as Mitsuba 0.6's photon
+    /// mapper treats every BSDF that is not purely diffuse. A mask scales its nested
+    /// BSDF's diffuse part by the opacity; `twosided` keeps it when both sides agree.
     pub fn diffuse_albedo(&self) -> Color {
         match self {
             Bsdf::Lambertian(m) => m.albedo,
             Bsdf::Glossy(m) => m.kd,
+            Bsdf::TwoSided(t) if t.front == t.back => t.front.diffuse_albedo(),
+            Bsdf::Mask(m) => m.nested.diffuse_albedo() * m.opacity,
             _ => Color::ZERO,
         }
     }
@@ -243,6 +367,47 @@ pub(crate) mod tests {
                 let u = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
                 let wi = uniform_sphere(u);
                 sum += b.eval(sp, wo, wi) * wi.dot(sp.ns()).abs() * (4.0 * std::f32::consts::PI);
+            }
+        }
+        sum / (n * n) as f32
+    }
+
+    /// Sampled directions agree with eval and pdf: for non-delta samples, `f` and `pdf`
+    /// equal `eval`/`pdf` at the sampled direction and `weight` = f·|cos|/pdf; delta
+    /// samples have zero eval. Directions wo from both sides.
+    pub fn check_sampling(b: &Bsdf, sp: &ShadingPoint, n: usize) {
+        let close = |a: f32, c: f32| (a - c).abs() <= 2e-3 * a.abs().max(c.abs()) + 1e-6;
+        let mut nondelta = 0;
+        for k in 0..n {
+            let h = |i: u64| crate::math::u32_to_unit((crate::math::hash_words(&[k as u64, i]) >> 32) as u32);
+            let wo = uniform_sphere([h(1), h(2)]);
+            let Some(s) = b.sample(sp, wo, h(3), [h(4), h(5)], TransportMode::Radiance) else { continue };
+            assert!(s.wi.is_finite() && (s.wi.length() - 1.0).abs() < 1e-3 && s.weight.is_finite(), "{b:?}: {s:?}");
+            if s.delta {
+                continue;
+            }
+            nondelta += 1;
+            let (e, p) = (b.eval(sp, wo, s.wi), b.pdf(sp, wo, s.wi));
+            assert!(close(s.pdf, p), "{b:?} wo {wo}: sample pdf {} vs pdf {p}", s.pdf);
+            for c in 0..3 {
+                assert!(close(s.f[c], e[c]), "{b:?} wo {wo}: sample f {} vs eval {e}", s.f);
+                let w = s.f[c] * s.wi.dot(sp.ns()).abs() / s.pdf;
+                assert!(close(s.weight[c], w), "{b:?} wo {wo}: weight {} vs f·cos/pdf {w}", s.weight);
+            }
+        }
+        assert!(nondelta > 0 || b.is_delta(), "{b:?}: no non-delta sample");
+    }
+
+    /// [`sampled_albedo`] in either transport mode.
+    pub fn sampled_albedo_mode(b: &Bsdf, sp: &ShadingPoint, wo: Vec3, n: usize, mode: TransportMode) -> Color {
+        let mut sum = Color::ZERO;
+        for i in 0..n {
+            for j in 0..n {
+                let u = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
+                let ul = ((i * 7919 + j * 104729) % (n * n)) as f32 / (n * n) as f32;
+                if let Some(s) = b.sample(sp, wo, ul, u, mode) {
+                    sum += s.weight;
+                }
             }
         }
         sum / (n * n) as f32

@@ -297,7 +297,7 @@ fn ratio(a: f32, b: f32) -> f32 {
 /// Runs the photon pass. `sampler` is the emission sampler prototype (its sample
 /// index is the photon path number).
 pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette, s: &PhotonPassSettings, quiet: bool) -> PhotonMaps {
-    let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.is_delta());
+    let has_specular = world.scene.tri_material.iter().any(|&m| world.scene.materials[m as usize].bsdf.has_delta());
     let mut warnings = Vec::new();
     let mut want_caustic = s.caustic_photons;
     if want_caustic > 0 && !has_specular {

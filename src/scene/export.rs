@@ -127,6 +127,7 @@ fn material_lines(m: &Material) -> Result<Written> {
                 Written::Override(format!("{{ type = \"glossy\", kd = {}, ks = {}, ns = {} }}", tv(g.kd), tv(g.ks), tf(g.exponent)))
             }
         }
+        other => bail!("material `{}`: {} cannot be written in the scene contract", m.name, other.kind_name()),
     })
 }
 

@@ -41,7 +41,7 @@ use super::builtin::{BUILTINS, builtin};
 use super::obj::{ObjFile, load_obj};
 use super::{Placement, Scene, unit_or_zero};
 use crate::camera::Camera;
-use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Material, Mirror};
+use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Material, MicrofacetType, Mirror, Plastic, RoughConductor, RoughPlastic};
 use crate::math::Color;
 use crate::scene::LightDesc;
 use anyhow::{Result, anyhow, bail};
@@ -164,6 +164,36 @@ enum OverrideToml {
         #[serde(alias = "exponent")]
         ns: Option<f32>,
     },
+    /// Mitsuba 3's `roughconductor` (defaults as Mitsuba's: Beckmann, α 0.1, η 0 + 1i,
+    /// a perfect reflector).
+    #[serde(rename = "roughconductor")]
+    RoughConductor {
+        distribution: Option<String>,
+        alpha: Option<f32>,
+        eta: Option<[f32; 3]>,
+        k: Option<[f32; 3]>,
+        specular_reflectance: Option<[f32; 3]>,
+    },
+    /// Mitsuba 3's `roughplastic` (Beckmann, α 0.1, indices 1.49 / 1.000277).
+    #[serde(rename = "roughplastic")]
+    RoughPlastic {
+        distribution: Option<String>,
+        alpha: Option<f32>,
+        diffuse_reflectance: Option<[f32; 3]>,
+        specular_reflectance: Option<[f32; 3]>,
+        int_ior: Option<f32>,
+        ext_ior: Option<f32>,
+        nonlinear: Option<bool>,
+    },
+    /// Mitsuba 3's `plastic`.
+    #[serde(rename = "plastic")]
+    Plastic {
+        diffuse_reflectance: Option<[f32; 3]>,
+        specular_reflectance: Option<[f32; 3]>,
+        int_ior: Option<f32>,
+        ext_ior: Option<f32>,
+        nonlinear: Option<bool>,
+    },
     #[serde(rename = "emitter")]
     Emitter {
         #[serde(alias = "ke")]
@@ -202,6 +232,32 @@ fn direction(c: [f32; 3], what: &str) -> anyhow::Result<Vec3> {
     if v == Vec3::ZERO { Err(anyhow!("{what} must not be zero")) } else { Ok(v) }
 }
 
+/// Mitsuba's `distribution` names (default Beckmann).
+fn microfacet_type(name: Option<&str>) -> anyhow::Result<MicrofacetType> {
+    match name.unwrap_or("beckmann") {
+        "beckmann" => Ok(MicrofacetType::Beckmann),
+        "ggx" => Ok(MicrofacetType::Ggx),
+        other => Err(anyhow!("distribution must be \"beckmann\" or \"ggx\", got \"{other}\"")),
+    }
+}
+
+/// A roughness α (default 0.1, Mitsuba's): finite and positive.
+fn roughness(alpha: Option<f32>) -> anyhow::Result<f32> {
+    let a = alpha.unwrap_or(0.1);
+    if a.is_finite() && a > 0.0 { Ok(a) } else { Err(anyhow!("alpha must be finite and positive, got {a}")) }
+}
+
+/// Interior and exterior indices (defaults 1.49 and 1.000277, Mitsuba's plastics').
+fn iors(int_ior: Option<f32>, ext_ior: Option<f32>) -> anyhow::Result<(f32, f32)> {
+    let (i, e) = (int_ior.unwrap_or(1.49), ext_ior.unwrap_or(1.000_277));
+    for (name, v) in [("int_ior", i), ("ext_ior", e)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(anyhow!("{name} must be finite and positive, got {v}"));
+        }
+    }
+    Ok((i, e))
+}
+
 /// Builds the override material with the contract's defaults.
 fn override_material(m: &OverrideToml, name: &str) -> anyhow::Result<Material> {
     let grey = [0.5f32; 3];
@@ -224,6 +280,37 @@ fn override_material(m: &OverrideToml, name: &str) -> anyhow::Result<Material> {
                 return Err(anyhow::anyhow!("ns must be finite and non-negative, got {exponent}"));
             }
             mat.bsdf = Bsdf::Glossy(Glossy { kd: colour(kd.unwrap_or(grey), "kd")?, ks: colour(ks.unwrap_or([0.0; 3]), "ks")?, exponent });
+        }
+        OverrideToml::RoughConductor { distribution, alpha, eta, k, specular_reflectance } => {
+            mat.bsdf = Bsdf::RoughConductor(RoughConductor {
+                distribution: microfacet_type(distribution.as_deref())?,
+                alpha: roughness(*alpha)?,
+                eta: colour(eta.unwrap_or([0.0; 3]), "eta")?,
+                k: colour(k.unwrap_or([1.0; 3]), "k")?,
+                specular_reflectance: colour(specular_reflectance.unwrap_or([1.0; 3]), "specular_reflectance")?,
+            })
+        }
+        OverrideToml::RoughPlastic { distribution, alpha, diffuse_reflectance, specular_reflectance, int_ior, ext_ior, nonlinear } => {
+            let (int_ior, ext_ior) = iors(*int_ior, *ext_ior)?;
+            mat.bsdf = Bsdf::RoughPlastic(RoughPlastic::new(
+                microfacet_type(distribution.as_deref())?,
+                roughness(*alpha)?,
+                colour(diffuse_reflectance.unwrap_or(grey), "diffuse_reflectance")?,
+                colour(specular_reflectance.unwrap_or([1.0; 3]), "specular_reflectance")?,
+                int_ior,
+                ext_ior,
+                nonlinear.unwrap_or(false),
+            ))
+        }
+        OverrideToml::Plastic { diffuse_reflectance, specular_reflectance, int_ior, ext_ior, nonlinear } => {
+            let (int_ior, ext_ior) = iors(*int_ior, *ext_ior)?;
+            mat.bsdf = Bsdf::Plastic(Plastic::new(
+                colour(diffuse_reflectance.unwrap_or(grey), "diffuse_reflectance")?,
+                colour(specular_reflectance.unwrap_or([1.0; 3]), "specular_reflectance")?,
+                int_ior,
+                ext_ior,
+                nonlinear.unwrap_or(false),
+            ))
         }
         OverrideToml::Emitter { radiance, albedo } => {
             mat.bsdf = Bsdf::Lambertian(Lambertian { albedo: colour(albedo.unwrap_or(grey), "albedo")? });

@@ -200,6 +200,24 @@ impl PhotonContext {
             let bsdf = &world.material(&it).bsdf;
             let wo = -ray.d.normalize();
             if !bsdf.is_delta() {
+                // A mixed BSDF (plastic coating, mask): its delta lobes are followed with
+                // their sampling probability p, the rest shaded here with weight 1/(1 − p).
+                let p = bsdf.delta_probability(&it.sp, wo);
+                if p > 0.0 {
+                    let u = key.uniform(0xDE17A + d as u64);
+                    if u < p
+                        && let Some(bs) = bsdf.sample(&it.sp, wo, u, [0.5; 2], TransportMode::Radiance)
+                        && bs.delta
+                    {
+                        w *= bs.weight;
+                        ray = world.spawn(&it, bs.wi);
+                        continue;
+                    }
+                    if u < p {
+                        return None;
+                    }
+                    w /= 1.0 - p;
+                }
                 return Some(SpecularPath { it, wo, weight: w, first_dist, length });
             }
             let (br, n) = bsdf.specular_branches(&it.sp, wo, TransportMode::Radiance);

@@ -231,7 +231,9 @@ impl PhotonIntegrator {
         }
         let bsdf = &mat.bsdf;
         let wo = -ray.d.normalize();
-        if bsdf.is_delta() {
+        // Delta lobes (all of a mirror's or glass's; a plastic coating's or a mask's
+        // null lobe besides the other lobes shaded below) are followed as branches.
+        if bsdf.has_delta() && (sdepth < MAX_SPECULAR || bsdf.is_delta()) {
             if sdepth >= MAX_SPECULAR {
                 return l;
             }
@@ -245,7 +247,9 @@ impl PhotonIntegrator {
             } else if let Some((wi, w)) = pick_branch(&br[..n], key.uniform(0x5BEC + sdepth as u64)) {
                 l += w * self.radiance(ctx, world, &world.spawn(&it, wi), sdepth + 1, key, stats);
             }
-            return l;
+            if bsdf.is_delta() {
+                return l;
+            }
         }
         // The trees exist when the output asks for them (`map_trees`).
         let est =

@@ -16,6 +16,7 @@
 //! calibrated there, but a wrong pdf still gives a huge statistic.
 
 mod lights;
+mod microfacet;
 
 use super::{FamilyReport, Outcome, Settings, TestRow, sidak};
 use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Mirror, ShadingPoint, TransportMode};
@@ -360,6 +361,30 @@ fn bsdf_case(name: &str, bsdf: Bsdf, pdf_of: Bsdf, sp: ShadingPoint, wo: Vec3, f
     }
 }
 
+/// As [`bsdf_case`], with delta samples (mixed BSDFs' delta lobes) counted as
+/// failures: the failure bin then expects their probability, N·(1 − ∫pdf).
+#[allow(clippy::too_many_arguments)]
+fn bsdf_case_filtered(
+    name: &str,
+    bsdf: Bsdf,
+    pdf_of: Bsdf,
+    sp: ShadingPoint,
+    wo: Vec3,
+    frame: Frame,
+    theta_max: f64,
+    expected: Outcome,
+) -> DirCase {
+    DirCase {
+        name: name.into(),
+        expected,
+        frame,
+        theta_max,
+        can_fail: true,
+        sample: Box::new(move |ul, u| bsdf.sample(&sp, wo, ul, u, TransportMode::Radiance).filter(|s| !s.delta).map(|s| s.wi)),
+        pdf: Box::new(move |w| pdf_of.pdf(&sp, wo, w) as f64),
+    }
+}
+
 fn phong(kd: f32, ks: f32, exponent: f32) -> Bsdf {
     Bsdf::Glossy(Glossy { kd: Color::splat(kd), ks: Color::splat(ks), exponent })
 }
@@ -424,6 +449,9 @@ pub fn direction_cases(s: &Settings) -> Result<Vec<DirCase>> {
         falloff_deg: 35.0,
     })?);
     v.push(delta_emission_case(LightDesc::Point { position: Vec3::new(0.0, 0.0, 1.0), intensity: Color::ONE })?);
+    // Mitsuba's BSDFs (their planted controls at the end).
+    let (mitsuba_pass, mitsuba_planted): (Vec<_>, Vec<_>) = microfacet::cases(s).into_iter().partition(|c| c.expected == Outcome::Pass);
+    v.extend(mitsuba_pass);
     // Planted: Phong n = 10 samples against the n = 11 pdf; cosine samples against
     // the uniform-hemisphere pdf.
     let wo = from_theta(30.0);
@@ -446,6 +474,7 @@ pub fn direction_cases(s: &Settings) -> Result<Vec<DirCase>> {
         sample: Box::new(|_, u| Some(cosine_hemisphere(u))),
         pdf: Box::new(|w| if w.z > 0.0 { 1.0 / (2.0 * PI) } else { 0.0 }),
     });
+    v.extend(mitsuba_planted);
     Ok(v)
 }
 
