@@ -544,7 +544,7 @@ impl MeshDesc {
     /// Reads the OBJ and adds its triangles to `scene`.
     fn add_to(&self, scene: &mut Scene) -> Result<()> {
         let at = &self.at;
-        let ObjFile { mut mesh, warnings } = load_obj(&self.obj).map_err(|e| anyhow!("{at}: {e}"))?;
+        let ObjFile { mut mesh, warnings, .. } = load_obj(&self.obj).map_err(|e| anyhow!("{at}: {e}"))?;
         scene.warnings.extend(warnings);
         let mut place = self.placement;
         if place.scale.min_element() < 0.0 {
@@ -585,11 +585,15 @@ impl MeshDesc {
     }
 }
 
-/// Loads a scene file (TOML with OBJ/MTL meshes) following `scene-format.md`.
+/// Loads a scene file (TOML with OBJ/MTL meshes) following `scene-format.md`, or a
+/// Mitsuba 3 XML scene (`.xml`, [`super::mitsuba`]).
 ///
 /// Non-fatal remarks (undefined materials, negative scales, dropped zero-area
 /// triangles, ignored MTL statements) end up in `scene.warnings`.
 pub fn load_scene(path: &Path) -> Result<Scene> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) {
+        return super::mitsuba::load_mitsuba(path);
+    }
     let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: cannot read scene file: {e}", path.display()))?;
     let src = TomlSource { file: path, text: &text };
     let doc = DeTable::parse(&text).map_err(|e| src.error(&e))?;
