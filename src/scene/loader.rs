@@ -544,7 +544,7 @@ impl MeshDesc {
     /// Reads the OBJ and adds its triangles to `scene`.
     fn add_to(&self, scene: &mut Scene) -> Result<()> {
         let at = &self.at;
-        let ObjFile { mut mesh, warnings, .. } = load_obj(&self.obj).map_err(|e| anyhow!("{at}: {e}"))?;
+        let ObjFile { mut mesh, warnings, uvs, maps } = load_obj(&self.obj).map_err(|e| anyhow!("{at}: {e}"))?;
         scene.warnings.extend(warnings);
         let mut place = self.placement;
         if place.scale.min_element() < 0.0 {
@@ -576,7 +576,14 @@ impl MeshDesc {
             place.scale = Vec3::splat(h / height);
         }
         let before = scene.dropped_degenerate;
-        scene.add_mesh(&mesh, &place, self.material.as_ref()).map_err(|e| anyhow!("{at}: {}: {e}", self.obj.display()))?;
+        let mat_base = scene.materials.len() as u32;
+        let has_uvs = uvs.faces.iter().any(Option::is_some);
+        scene
+            .add_mesh_uv(&mesh, has_uvs.then_some(&uvs), &place, self.material.as_ref())
+            .map_err(|e| anyhow!("{at}: {}: {e}", self.obj.display()))?;
+        if self.material.is_none() {
+            super::textures::bind_mtl_maps(scene, mat_base, &maps, at)?;
+        }
         let dropped = scene.dropped_degenerate - before;
         if dropped > 0 {
             scene.warnings.push(format!("{at}: dropped {dropped} zero-area triangle(s) of {}", self.obj.display()));

@@ -97,8 +97,14 @@ pub fn build(doc: &SceneXml, path: &Path) -> Result<Scene> {
                     v
                 }
             },
-            // Mitsuba's default: diffuse, reflectance 0.5.
-            None => (Material::diffuse("default", Vec3::splat(0.5)), Vec::new()),
+            // Mitsuba's default: diffuse, reflectance 0.5 (one-sided).
+            None => {
+                let d = "default (diffuse 0.5)".to_string();
+                if !one_sided.contains(&d) {
+                    one_sided.push(d);
+                }
+                (Material::diffuse("default", Vec3::splat(0.5)), Vec::new())
+            }
         };
         if let Some(e) = s.child("emitter")? {
             material.emission = emitters::area(&e)?;

@@ -35,6 +35,7 @@ pub struct ShapeMesh {
 pub fn shape_mesh(p: &Plugin, warnings: &mut Vec<String>) -> Result<ShapeMesh> {
     let mut to_world = p.transform("to_world")?.unwrap_or(Mat4::IDENTITY);
     let flip = p.bool_or("flip_normals", false)?;
+    let mut smooth_missing_normals = false;
     let (mut mesh, uvs) = match p.ty.as_str() {
         "obj" | "ply" => {
             let (name, loc) = p.string("filename")?.ok_or_else(|| p.err("needs a `filename`"))?;
@@ -59,6 +60,8 @@ pub fn shape_mesh(p: &Plugin, warnings: &mut Vec<String>) -> Result<ShapeMesh> {
                 for f in mesh.faces.iter_mut() {
                     f.n = None;
                 }
+            } else {
+                smooth_missing_normals = mesh.faces.iter().any(|f| f.n.is_none());
             }
             mesh.materials.clear();
             for f in mesh.faces.iter_mut() {
@@ -104,6 +107,9 @@ pub fn shape_mesh(p: &Plugin, warnings: &mut Vec<String>) -> Result<ShapeMesh> {
             *n = -*n;
         }
     }
+    if smooth_missing_normals {
+        smooth_normals(&mut mesh, uvs.as_ref());
+    }
     let mut uvs = uvs;
     if flip && let Some(u) = uvs.as_mut() {
         for t in u.faces.iter_mut().flatten() {
@@ -111,6 +117,46 @@ pub fn shape_mesh(p: &Plugin, warnings: &mut Vec<String>) -> Result<ShapeMesh> {
         }
     }
     Ok(ShapeMesh { mesh, uvs })
+}
+
+/// Mitsuba's `recompute_vertex_normals` for faces without normals: each vertex gets
+/// the sum of its faces' normals weighted by the corner angle (Thürmer and Wüthrich
+/// 1998), normalised. Vertices are Mitsuba's: a position with a different texture
+/// coordinate is another vertex (its OBJ reader merges corners by (v, vt, vn)).
+fn smooth_normals(mesh: &mut MeshData, uvs: Option<&MeshUvs>) {
+    let mut slot: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+    let mut sums: Vec<Vec3> = Vec::new();
+    let base = mesh.normals.len() as u32;
+    let mut corner_slots: Vec<Option<[u32; 3]>> = Vec::with_capacity(mesh.faces.len());
+    for (fi, f) in mesh.faces.iter().enumerate() {
+        if f.n.is_some() {
+            corner_slots.push(None);
+            continue;
+        }
+        let t = uvs.and_then(|u| u.faces.get(fi).copied().flatten());
+        let p = f.v.map(|k| mesh.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO));
+        let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+        let mut ids = [0u32; 3];
+        for c in 0..3 {
+            let key = (f.v[c], t.map_or(u32::MAX, |t| t[c]));
+            let id = *slot.entry(key).or_insert_with(|| {
+                sums.push(Vec3::ZERO);
+                (sums.len() - 1) as u32
+            });
+            let d0 = (p[(c + 1) % 3] - p[c]).normalize_or_zero();
+            let d1 = (p[(c + 2) % 3] - p[c]).normalize_or_zero();
+            let angle = d0.dot(d1).clamp(-1.0, 1.0).acos();
+            sums[id as usize] += n * angle;
+            ids[c] = base + id;
+        }
+        corner_slots.push(Some(ids));
+    }
+    mesh.normals.extend(sums.into_iter().map(|n| n.normalize_or_zero()));
+    for (f, ids) in mesh.faces.iter_mut().zip(corner_slots) {
+        if ids.is_some() {
+            f.n = ids;
+        }
+    }
 }
 
 fn face(v: [u32; 3], with_normals: bool) -> Face {
