@@ -15,6 +15,7 @@
 //! so their statistic sits far below the chi-square law (p ≈ 1): the p-value is not
 //! calibrated there, but a wrong pdf still gives a huge statistic.
 
+mod env;
 mod lights;
 
 use super::{FamilyReport, Outcome, Settings, TestRow, sidak};
@@ -424,6 +425,7 @@ pub fn direction_cases(s: &Settings) -> Result<Vec<DirCase>> {
         falloff_deg: 35.0,
     })?);
     v.push(delta_emission_case(LightDesc::Point { position: Vec3::new(0.0, 0.0, 1.0), intensity: Color::ONE })?);
+    v.extend(env::env_cases()?);
     // Planted: Phong n = 10 samples against the n = 11 pdf; cosine samples against
     // the uniform-hemisphere pdf.
     let wo = from_theta(30.0);
