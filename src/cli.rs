@@ -304,11 +304,17 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 fn cmd_render(a: &RenderArgs) -> Result<()> {
-    let cfg = a.config()?;
+    let mut cfg = a.config()?;
     crate::registry::validate(&cfg)?;
     let t0 = std::time::Instant::now();
     let scene = a.load()?;
     let load_s = t0.elapsed().as_secs_f64();
+    // A scene's suggested sample count (Mitsuba's `sample_count`) unless --spp is given.
+    if a.spp.is_none()
+        && let Some(n) = scene.default_spp
+    {
+        cfg.spp = n;
+    }
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }

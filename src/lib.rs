@@ -45,4 +45,5 @@ pub mod rr;
 pub mod sampler;
 pub mod scene;
 pub mod stats;
+pub mod texture;
 pub mod world;

@@ -4,9 +4,13 @@
 use crate::accel::{Accel, TraversalStats};
 use crate::geometry::{Hit, Ray, offset_origin};
 use crate::light::LightSet;
-use crate::material::{Material, ShadingPoint};
-use crate::scene::{NO_NORMALS, Scene};
-use glam::Vec3;
+use crate::material::{Bsdf, Material, ShadingPoint};
+use crate::math::Color;
+use crate::scene::{NO_NORMALS, NO_UVS, Scene};
+use crate::texture::{Binding, Slot};
+use glam::{Vec2, Vec3};
+use std::borrow::Cow;
+use std::ops::Range;
 
 /// Scene + accelerator + light set.
 pub struct World {
@@ -16,6 +20,10 @@ pub struct World {
     pub accel: Box<dyn Accel>,
     /// Its lights.
     pub lights: LightSet,
+    /// Texture bindings sorted by material, and each material's range of them (empty
+    /// when the scene has no textures).
+    tex_bindings: Vec<Binding>,
+    tex_ranges: Vec<Range<u32>>,
 }
 
 /// Everything an integrator needs about a surface hit.
@@ -31,6 +39,9 @@ pub struct Interaction {
     pub t: f32,
     /// True when the ray arrived on the triangle's front (winding-normal) side.
     pub front: bool,
+    /// Texture coordinates (the barycentrics (b1, b2) where the mesh has none, as in
+    /// Mitsuba).
+    pub uv: Vec2,
 }
 
 impl World {
@@ -38,7 +49,22 @@ impl World {
     pub fn new(scene: Scene, accel: Box<dyn Accel>) -> anyhow::Result<Self> {
         scene.validate()?;
         let lights = LightSet::build(&scene)?;
-        Ok(World { scene, accel, lights })
+        let mut tex_bindings = scene.textures.bindings.clone();
+        tex_bindings.sort_by_key(|b| b.material);
+        let mut tex_ranges = Vec::new();
+        if !tex_bindings.is_empty() {
+            tex_ranges = vec![0..0; scene.materials.len()];
+            for (k, b) in tex_bindings.iter().enumerate() {
+                let r = tex_ranges
+                    .get_mut(b.material as usize)
+                    .ok_or_else(|| anyhow::anyhow!("texture bound to a material that does not exist"))?;
+                if r.start == r.end {
+                    *r = k as u32..k as u32;
+                }
+                r.end = k as u32 + 1;
+            }
+        }
+        Ok(World { scene, accel, lights, tex_bindings, tex_ranges })
     }
 
     /// Closest hit along `ray`.
@@ -62,10 +88,43 @@ impl World {
             let n = &self.scene.normals[ni as usize];
             (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).try_normalize().unwrap_or(ng)
         };
-        Interaction { p, sp: ShadingPoint::new(ng, ns), tri: hit.tri, t: hit.t, front: ray.d.dot(ng) < 0.0 }
+        let uv = match self.scene.tri_uvs.get(hit.tri as usize) {
+            Some(&k) if k != NO_UVS => {
+                let t = &self.scene.uvs[k as usize];
+                t[0] * b0 + t[1] * hit.b1 + t[2] * hit.b2
+            }
+            _ => Vec2::new(hit.b1, hit.b2),
+        };
+        Interaction { p, sp: ShadingPoint::new(ng, ns), tri: hit.tri, t: hit.t, front: ray.d.dot(ng) < 0.0, uv }
     }
 
-    /// Material at an interaction.
+    /// The BSDF at an interaction with its textured parameters filled in (borrowed,
+    /// without any work, for untextured materials).
+    #[inline]
+    pub fn bsdf_at(&self, it: &Interaction) -> Cow<'_, Bsdf> {
+        let m = self.scene.tri_material[it.tri as usize] as usize;
+        let bsdf = &self.scene.materials[m].bsdf;
+        match self.tex_ranges.get(m) {
+            Some(r) if r.start < r.end => {
+                let mut b = bsdf.clone();
+                for bind in &self.tex_bindings[r.start as usize..r.end as usize] {
+                    let t = &self.scene.textures.textures[bind.texture as usize];
+                    set_slot(&mut b, bind.slot, || t.eval(it.uv), |alpha| t.eval_1(it.uv, alpha));
+                }
+                Cow::Owned(b)
+            }
+            _ => Cow::Borrowed(bsdf),
+        }
+    }
+
+    /// Radiance of the environment along a ray that left the scene in direction `d`.
+    #[inline]
+    pub fn escaped(&self, d: Vec3) -> Color {
+        self.lights.escaped(d)
+    }
+
+    /// Material at an interaction (its untextured parameters: use
+    /// [`World::bsdf_at`] for scattering).
     #[inline]
     pub fn material(&self, it: &Interaction) -> &Material {
         self.scene.material(it.tri)
@@ -93,5 +152,18 @@ impl World {
     pub fn unoccluded_dir(&self, it: &Interaction, d: Vec3, stats: &mut TraversalStats) -> bool {
         let ray = self.spawn(it, d);
         !self.accel.occluded(&ray, f32::INFINITY, stats)
+    }
+}
+
+/// Writes a textured value into a BSDF parameter. Slots a BSDF does not have are left
+/// alone (the loader binds only slots the material has).
+fn set_slot(b: &mut Bsdf, slot: Slot, rgb: impl Fn() -> Color, _scalar: impl Fn(bool) -> f32) {
+    match (slot, b) {
+        (Slot::DiffuseReflectance, Bsdf::Lambertian(m)) => m.albedo = rgb(),
+        (Slot::DiffuseReflectance, Bsdf::Glossy(m)) => m.kd = rgb(),
+        (Slot::SpecularReflectance, Bsdf::Mirror(m)) => m.reflectance = rgb(),
+        (Slot::SpecularReflectance, Bsdf::Glossy(m)) => m.ks = rgb(),
+        // Opacity belongs to the `mask` BSDF (not in this build).
+        _ => {}
     }
 }

@@ -109,9 +109,10 @@ impl SceneSpec {
             if !p.is_file() {
                 bail!("{}: scene file {} not found", self.at, p.display());
             }
-            // The base file's own models (e.g. public models kept outside the repository).
-            let base = read_scene_file(p)?;
-            for m in &base.meshes {
+            // A TOML base file's own models (e.g. public models kept outside the repository).
+            let is_toml = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+            let meshes = if is_toml { read_scene_file(p)?.meshes } else { Vec::new() };
+            for m in &meshes {
                 if !m.obj.is_file() {
                     let h = hint(&self.desc.base_download);
                     bail!(

@@ -3,7 +3,9 @@
 //! Next-event estimation at every non-specular vertex (one light chosen in proportion
 //! to power, a point sampled on it), combined with BSDF sampling by multiple importance
 //! sampling (power heuristic) for area lights; delta lights are sampled only by NEE,
-//! delta BSDF lobes only by BSDF sampling (their emitted hits count fully). Russian
+//! delta BSDF lobes only by BSDF sampling (their emitted hits count fully). Rays that
+//! leave the scene return the environment light (MIS-weighted against its sampling).
+//! Textured parameters are filled in at each hit (`World::bsdf_at`). Russian
 //! roulette by the configured policy; `max_depth` bounces at most (unbounded by default).
 //!
 //! Extra images `direct`, `indirect`, `caustic` split the image by path type, as the
@@ -79,8 +81,7 @@ impl Integrator for PathIntegrator {
         let mut prev_pdf = 0.0f32;
         let mut prev_p = ray.o;
         let mut depth = 0u32;
-        while let Some(it) = world.intersect(&ray, stats) {
-            let mat = world.material(&it);
+        loop {
             let emit_class = if !k_seen || after_k == 0 {
                 PathOutput::Direct
             } else if after_k_nondelta {
@@ -88,6 +89,16 @@ impl Integrator for PathIntegrator {
             } else {
                 PathOutput::Caustic
             };
+            let Some(it) = world.intersect(&ray, stats) else {
+                // Escaped: the environment, weighted against its light sampling.
+                if want(emit_class) && world.lights.env.is_some() {
+                    let le = world.escaped(ray.d.normalize());
+                    let w = if specular { 1.0 } else { power_heuristic(prev_pdf, world.lights.pdf_env(ray.d.normalize())) };
+                    l += beta * le * w;
+                }
+                break;
+            };
+            let mat = world.material(&it);
             if it.front && mat.is_emitter() && want(emit_class) {
                 if specular {
                     l += beta * mat.emission;
@@ -100,7 +111,7 @@ impl Integrator for PathIntegrator {
                 break;
             }
             let wo = -ray.d.normalize();
-            let bsdf = &mat.bsdf;
+            let bsdf = &*world.bsdf_at(&it);
             let dim = bounce_dim(depth);
             sampler.set_dimension(dim);
             let u_sel = sampler.next_1d();

@@ -3,7 +3,9 @@
 //! for next-event estimation and (later) photon emission.
 
 mod area;
+mod constant;
 mod directional;
+pub mod envmap;
 mod point;
 mod spot;
 
@@ -31,6 +33,51 @@ pub enum Light {
     },
     /// Non-geometric light.
     Desc(LightDesc),
+    /// Environment light (`constant` or `envmap`), at infinity in every direction.
+    Env(Environment),
+}
+
+/// An environment light.
+#[derive(Clone, Debug)]
+pub enum Environment {
+    /// Uniform radiance.
+    Constant(Color),
+    /// Equirectangular map.
+    Map(Box<envmap::EnvMap>),
+}
+
+impl Environment {
+    /// Radiance arriving from direction `d` (pointing away from the scene).
+    #[inline]
+    pub fn eval(&self, d: Vec3) -> Color {
+        match self {
+            Environment::Constant(c) => *c,
+            Environment::Map(m) => m.eval(d),
+        }
+    }
+    /// Samples a direction towards the environment: (direction, radiance, pdf).
+    #[inline]
+    pub fn sample(&self, u: [f32; 2]) -> Option<(Vec3, Color, f32)> {
+        match self {
+            Environment::Constant(c) => Some(constant::sample(*c, u)),
+            Environment::Map(m) => m.sample(u),
+        }
+    }
+    /// Solid-angle pdf of [`Environment::sample`].
+    #[inline]
+    pub fn pdf(&self, d: Vec3) -> f32 {
+        match self {
+            Environment::Constant(_) => crate::math::UNIFORM_SPHERE_PDF,
+            Environment::Map(m) => m.pdf(d),
+        }
+    }
+    /// ∫ mean(L) dω.
+    pub fn integral(&self) -> f32 {
+        match self {
+            Environment::Constant(c) => constant::integral(*c),
+            Environment::Map(m) => m.integral(),
+        }
+    }
 }
 
 /// Result of sampling incident light at a point.
@@ -124,6 +171,8 @@ pub struct LightSet {
     pub scene_center: Vec3,
     /// Bounding sphere radius.
     pub scene_radius: f32,
+    /// Index of the environment light in `lights`, if any.
+    pub env: Option<u32>,
 }
 
 impl LightSet {
@@ -146,10 +195,27 @@ impl LightSet {
                 });
             }
         }
-        lights.extend(scene.lights.iter().cloned().map(Light::Desc));
+        let mut env = None;
+        for l in &scene.lights {
+            let e = match l {
+                LightDesc::Constant { radiance } => Environment::Constant(*radiance),
+                LightDesc::Envmap { image, scale, to_world } => {
+                    Environment::Map(Box::new(envmap::EnvMap::new(image.clone(), *scale, *to_world)?))
+                }
+                other => {
+                    lights.push(Light::Desc(other.clone()));
+                    continue;
+                }
+            };
+            if env.is_some() {
+                anyhow::bail!("scene has more than one environment light");
+            }
+            env = Some(lights.len() as u32);
+            lights.push(Light::Env(e));
+        }
         let powers: Vec<f32> = lights.iter().map(|l| l.power(scene_radius)).collect();
         let distribution = Distribution1D::new(&powers).ok_or_else(|| anyhow::anyhow!("scene has no light with positive power"))?;
-        Ok(LightSet { lights, distribution, tri_light, scene_center, scene_radius })
+        Ok(LightSet { lights, distribution, tri_light, scene_center, scene_radius, env })
     }
 
     /// Picks one light by power and samples incident light at `p` from it.
@@ -163,6 +229,12 @@ impl LightSet {
                 spot::sample_li(*position, *direction, *intensity, *cone_deg, *falloff_deg, p)?
             }
             Light::Desc(LightDesc::Directional { direction, irradiance }) => directional::sample_li(*direction, *irradiance)?,
+            Light::Env(e) => {
+                let (wi, li, pdf) = e.sample(u)?;
+                LightSample { wi, dist: f32::INFINITY, li, pdf, delta: false, point: Vec3::ZERO, normal: Vec3::ZERO }
+            }
+            // Environment descriptions become `Light::Env` in `build`.
+            Light::Desc(LightDesc::Constant { .. } | LightDesc::Envmap { .. }) => return None,
         };
         s.pdf *= p_sel;
         Some(s)
@@ -186,6 +258,32 @@ impl LightSet {
         self.distribution.pmf(li as usize) * d2 / (cos * area)
     }
 
+    /// The environment light, if any.
+    #[inline]
+    pub fn environment(&self) -> Option<&Environment> {
+        match self.lights.get(self.env? as usize)? {
+            Light::Env(e) => Some(e),
+            _ => None,
+        }
+    }
+
+    /// Radiance of the environment seen along direction `d` (zero without one): what
+    /// a ray that leaves the scene returns.
+    #[inline]
+    pub fn escaped(&self, d: Vec3) -> Color {
+        self.environment().map_or(Color::ZERO, |e| e.eval(d))
+    }
+
+    /// Solid-angle pdf with which [`LightSet::sample_li`] picks the environment and
+    /// samples direction `d` from it.
+    #[inline]
+    pub fn pdf_env(&self, d: Vec3) -> f32 {
+        match (self.env, self.environment()) {
+            (Some(i), Some(e)) => self.distribution.pmf(i as usize) * e.pdf(d),
+            _ => 0.0,
+        }
+    }
+
     /// Total emitted power (mean over channels), the normaliser of photon power.
     pub fn total_power(&self) -> f32 {
         self.lights.iter().map(|l| l.power(self.scene_radius)).sum()
@@ -200,6 +298,9 @@ impl Light {
             Light::Desc(LightDesc::Point { intensity, .. }) => 4.0 * PI * mean(*intensity),
             Light::Desc(LightDesc::Spot { intensity, cone_deg, falloff_deg, .. }) => spot::power(mean(*intensity), *cone_deg, *falloff_deg),
             Light::Desc(LightDesc::Directional { irradiance, .. }) => PI * scene_radius * scene_radius * mean(*irradiance),
+            // Radiance through the scene's disc from every direction: π r² ∫ L dω.
+            Light::Env(e) => PI * scene_radius * scene_radius * e.integral(),
+            Light::Desc(LightDesc::Constant { .. } | LightDesc::Envmap { .. }) => 0.0,
         }
     }
 }

@@ -55,6 +55,18 @@ pub fn emit_photon(lights: &LightSet, scene: &Scene, u_sel: f32, u_pos: [f32; 2]
             let origin = lights.scene_center - *direction * (2.0 * r) + (f.s * q[0] + f.t * q[1]) * r;
             Emitted { origin, dir: *direction, power: *irradiance * (PI * r * r) }
         }
+        Light::Env(env) => {
+            // Direction towards the environment by its own sampling, then a point on
+            // the disc of the scene's bounding sphere facing it; the photon travels
+            // inwards: Φ = L(ω) · π r² / p(ω).
+            let (w, l, pdf) = env.sample(u_dir)?;
+            let r = lights.scene_radius;
+            let f = Frame::new(w);
+            let q = concentric_disc(u_pos);
+            let origin = lights.scene_center + w * (2.0 * r) + (f.s * q[0] + f.t * q[1]) * r;
+            Emitted { origin, dir: -w, power: l * (PI * r * r / pdf) }
+        }
+        Light::Desc(LightDesc::Constant { .. } | LightDesc::Envmap { .. }) => return None,
     };
     Some(Emitted { power: e.power / p_sel, ..e })
 }

@@ -213,6 +213,12 @@ pub fn export_scene(scene: &Scene, dir: &Path) -> Result<PathBuf> {
         }
     }
 
+    if let Some(l) = scene.lights.iter().find(|l| matches!(l, LightDesc::Constant { .. } | LightDesc::Envmap { .. })) {
+        anyhow::bail!(
+            "the scene contract has no environment lights; cannot export {}",
+            if matches!(l, LightDesc::Constant { .. }) { "a constant environment" } else { "an environment map" }
+        );
+    }
     for l in &scene.lights {
         toml.push_str("\n[[light]]\n");
         let _ = match l {
@@ -231,6 +237,7 @@ pub fn export_scene(scene: &Scene, dir: &Path) -> Result<PathBuf> {
             LightDesc::Directional { direction, irradiance } => {
                 writeln!(toml, "type = \"directional\"\ndirection = {}\nirradiance = {}", tv(*direction), tv(*irradiance))
             }
+            LightDesc::Constant { .. } | LightDesc::Envmap { .. } => Ok(()), // rejected above
         };
     }
     let toml_path = dir.join(format!("{stem}.toml"));

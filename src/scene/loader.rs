@@ -641,7 +641,7 @@ impl MeshDesc {
     /// Reads the OBJ and adds its triangles to `scene`.
     fn add_to(&self, scene: &mut Scene) -> Result<()> {
         let at = &self.at;
-        let ObjFile { mut mesh, warnings } = load_obj(&self.obj).map_err(|e| anyhow!("{at}: {e}"))?;
+        let ObjFile { mut mesh, warnings, uvs, maps } = load_obj(&self.obj).map_err(|e| anyhow!("{at}: {e}"))?;
         scene.warnings.extend(warnings);
         let mut place = self.placement;
         if place.scale.min_element() < 0.0 {
@@ -673,7 +673,14 @@ impl MeshDesc {
             place.scale = Vec3::splat(h / height);
         }
         let before = scene.dropped_degenerate;
-        scene.add_mesh(&mesh, &place, self.material.as_ref()).map_err(|e| anyhow!("{at}: {}: {e}", self.obj.display()))?;
+        let mat_base = scene.materials.len() as u32;
+        let has_uvs = uvs.faces.iter().any(Option::is_some);
+        scene
+            .add_mesh_uv(&mesh, has_uvs.then_some(&uvs), &place, self.material.as_ref())
+            .map_err(|e| anyhow!("{at}: {}: {e}", self.obj.display()))?;
+        if self.material.is_none() {
+            super::textures::bind_mtl_maps(scene, mat_base, &maps, at)?;
+        }
         let dropped = scene.dropped_degenerate - before;
         if dropped > 0 {
             scene.warnings.push(format!("{at}: dropped {dropped} zero-area triangle(s) of {}", self.obj.display()));
@@ -682,25 +689,29 @@ impl MeshDesc {
     }
 }
 
-/// Loads a scene file (TOML with OBJ/MTL meshes) following `scene-format.md`.
+/// Loads a scene file (TOML with OBJ/MTL meshes) following `scene-format.md`, or a
+/// Mitsuba 3 XML scene (`.xml`, [`super::mitsuba`]).
 ///
 /// Non-fatal remarks (undefined materials, negative scales, dropped zero-area
 /// triangles, ignored MTL statements) end up in `scene.warnings`.
-/// Reads and checks a scene file's description without reading its meshes.
+pub fn load_scene(path: &Path) -> Result<Scene> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) {
+        return super::mitsuba::load_mitsuba(path);
+    }
+    let desc = read_scene_file(path)?;
+    let name = path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
+    let mut scene = desc.build(&name, None)?;
+    scene.source = Some(path.to_path_buf());
+    Ok(scene)
+}
+
+/// Reads and checks a TOML scene file's description without reading its meshes.
 pub fn read_scene_file(path: &Path) -> Result<SceneDesc> {
     let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: cannot read scene file: {e}", path.display()))?;
     let src = TomlSource { file: path, text: &text };
     let doc = DeTable::parse(&text).map_err(|e| src.error(&e))?;
     let value = Spanned::new(doc.span(), DeValue::Table(doc.into_inner()));
     SceneDesc::from_toml(value, src, path.parent().unwrap_or(Path::new("")), Dialect::File)
-}
-
-pub fn load_scene(path: &Path) -> Result<Scene> {
-    let desc = read_scene_file(path)?;
-    let name = path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
-    let mut scene = desc.build(&name, None)?;
-    scene.source = Some(path.to_path_buf());
-    Ok(scene)
 }
 
 #[cfg(test)]

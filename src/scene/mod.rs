@@ -5,13 +5,16 @@
 pub mod builtin;
 pub mod export;
 pub mod loader;
+pub mod mitsuba;
 pub mod obj;
+pub mod ply;
+pub mod textures;
 
 use crate::camera::Camera;
 use crate::geometry::Aabb;
 use crate::material::Material;
 use crate::math::Color;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::path::PathBuf;
 
 /// Marker for "this triangle has no vertex normals".
@@ -43,6 +46,19 @@ pub struct MeshData {
     /// Materials referenced by `faces`.
     pub materials: Vec<Material>,
 }
+
+/// Texture coordinates of a mesh, kept apart from [`MeshData`]: `faces[i]` gives the
+/// `uvs` indices of `MeshData::faces[i]` (`None`: that face has none).
+#[derive(Clone, Debug, Default)]
+pub struct MeshUvs {
+    /// Texture coordinates.
+    pub uvs: Vec<Vec2>,
+    /// Per face, its corners' indices into `uvs`.
+    pub faces: Vec<Option<[u32; 3]>>,
+}
+
+/// Marker for "this triangle has no texture coordinates".
+pub const NO_UVS: u32 = u32::MAX;
 
 /// Affine placement of a mesh: scale, then rotation about +y, then translation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -115,6 +131,20 @@ pub enum LightDesc {
         /// Irradiance on a surface facing the light (W/m²).
         irradiance: Color,
     },
+    /// Uniform environment light (Mitsuba's `constant`).
+    Constant {
+        /// Radiance arriving from every direction.
+        radiance: Color,
+    },
+    /// Equirectangular environment map (Mitsuba's `envmap`).
+    Envmap {
+        /// Linear RGB image, Mitsuba's latitude–longitude layout.
+        image: std::sync::Arc<crate::texture::Image>,
+        /// Radiance scale.
+        scale: f32,
+        /// Environment-to-world rotation (`to_world`).
+        to_world: glam::Mat4,
+    },
 }
 
 /// A renderable scene.
@@ -134,6 +164,16 @@ pub struct Scene {
     pub tri_normals: Vec<u32>,
     /// Placed vertex normals, three per entry.
     pub normals: Vec<[Vec3; 3]>,
+    /// Index into `uvs` per triangle, or [`NO_UVS`]; may be shorter than `triangles`
+    /// (missing entries have none).
+    pub tri_uvs: Vec<u32>,
+    /// Texture coordinates, three per entry.
+    pub uvs: Vec<[Vec2; 3]>,
+    /// Image textures and their bindings to material parameters.
+    pub textures: crate::texture::SceneTextures,
+    /// Samples per pixel the scene file suggests (Mitsuba's `sample_count`); the
+    /// command line's `--spp` wins.
+    pub default_spp: Option<u32>,
     /// Materials.
     pub materials: Vec<Material>,
     /// Point, spot and directional lights.
@@ -157,6 +197,10 @@ impl Scene {
             tri_material: Vec::new(),
             tri_normals: Vec::new(),
             normals: Vec::new(),
+            tri_uvs: Vec::new(),
+            uvs: Vec::new(),
+            textures: Default::default(),
+            default_spp: None,
             materials: Vec::new(),
             lights: Vec::new(),
             bounds: Aabb::EMPTY,
@@ -169,6 +213,17 @@ impl Scene {
     /// triangles are dropped and counted. Non-finite coordinates are an error
     /// (the message names the face's source line when known).
     pub fn add_mesh(&mut self, mesh: &MeshData, place: &Placement, override_material: Option<&Material>) -> anyhow::Result<()> {
+        self.add_mesh_uv(mesh, None, place, override_material)
+    }
+
+    /// [`Scene::add_mesh`] with texture coordinates.
+    pub fn add_mesh_uv(
+        &mut self,
+        mesh: &MeshData,
+        uvs: Option<&MeshUvs>,
+        place: &Placement,
+        override_material: Option<&Material>,
+    ) -> anyhow::Result<()> {
         if !place.scale.is_finite() || place.scale.cmpeq(Vec3::ZERO).any() {
             return Err(anyhow::anyhow!("scale must be finite and non-zero, got {:?}", place.scale.to_array()));
         }
@@ -192,7 +247,7 @@ impl Scene {
         }
         let placed: Vec<Vec3> = mesh.positions.iter().map(|&p| place.point(p)).collect();
         let placed_n: Vec<Vec3> = mesh.normals.iter().map(|&n| place.normal(n)).collect();
-        for f in &mesh.faces {
+        for (fi, f) in mesh.faces.iter().enumerate() {
             let get = |i: u32| placed.get(i as usize).copied();
             let (Some(a), Some(b), Some(c)) = (get(f.v[0]), get(f.v[1]), get(f.v[2])) else {
                 return Err(anyhow::anyhow!("face at line {} refers to a vertex that does not exist", f.line));
@@ -221,6 +276,19 @@ impl Scene {
                 None => NO_NORMALS,
             };
             let m = if override_material.is_some() { mat_base } else { mat_base + f.material };
+            if let Some(t) = uvs.and_then(|u| u.faces.get(fi).copied().flatten()) {
+                let u = &uvs.expect("checked").uvs;
+                let g = |i: u32| u.get(i as usize).copied().filter(|v| v.is_finite());
+                let (Some(ta), Some(tb), Some(tc)) = (g(t[0]), g(t[1]), g(t[2])) else {
+                    return Err(anyhow::anyhow!(
+                        "face at line {} refers to a texture coordinate that does not exist or is not finite",
+                        f.line
+                    ));
+                };
+                self.tri_uvs.resize(self.triangles.len(), NO_UVS);
+                self.tri_uvs.push(self.uvs.len() as u32);
+                self.uvs.push([ta, tb, tc]);
+            }
             self.triangles.push([a, b, c]);
             self.tri_material.push(m);
             self.tri_normals.push(normals_idx);
@@ -290,6 +358,17 @@ impl Scene {
                 }
             }
         }
+        for t in &scene.tri_uvs {
+            h.write(&t.to_le_bytes());
+        }
+        for t in &scene.uvs {
+            for v in t {
+                for c in v.to_array() {
+                    h.write(&c.to_bits().to_le_bytes());
+                }
+            }
+        }
+        h.str(&format!("{:?}", scene.textures));
         // Debug output of floats is exact (shortest round-trip), so it is a faithful key.
         h.str(&format!("{:?}", scene.materials));
         h.str(&format!("{:?}", scene.lights));

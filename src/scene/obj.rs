@@ -16,11 +16,11 @@
 //! Text after `#` is a comment everywhere, so trailing comments on value lines work.
 //! Lines may end in CRLF; fields may be separated by tabs.
 
-use super::{Face, MeshData};
+use super::{Face, MeshData, MeshUvs};
 use crate::material::{Bsdf, Dielectric, Glossy, Material, Mirror};
 use crate::math::Color;
 use anyhow::{Result, anyhow, bail};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -38,6 +38,11 @@ pub fn default_material(name: &str) -> Material {
 pub struct ObjFile {
     /// The mesh: `materials` holds the materials its faces use, in order of first use.
     pub mesh: MeshData,
+    /// Texture coordinates (`vt`, v flipped to Mitsuba's top-down texture space);
+    /// `uvs.faces` is parallel to `mesh.faces`.
+    pub uvs: MeshUvs,
+    /// Texture maps of the materials (`map_Kd`, `map_d`), parallel to `mesh.materials`.
+    pub maps: Vec<MtlMaps>,
     /// Warnings, each prefixed with `file:line`.
     pub warnings: Vec<String>,
 }
@@ -63,6 +68,19 @@ pub struct MtlEntry {
     pub tr: Option<f32>,
     /// Illumination model `illum`.
     pub illum: Option<i64>,
+    /// Diffuse texture `map_Kd` (path as written, relative to the MTL file).
+    pub map_kd: Option<PathBuf>,
+    /// Opacity texture `map_d`.
+    pub map_d: Option<PathBuf>,
+}
+
+/// The texture maps of one OBJ material slot (paths resolved against the MTL's folder).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MtlMaps {
+    /// `map_Kd`.
+    pub kd: Option<PathBuf>,
+    /// `map_d`.
+    pub d: Option<PathBuf>,
 }
 
 /// A parsed MTL file: entries in file order, and warnings.
@@ -175,7 +193,7 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<MtlLibrary> {
             current = Some((name.to_string(), MtlEntry::default()));
             continue;
         }
-        let known = matches!(kw, "Kd" | "Ks" | "Ke" | "Tf" | "Ns" | "Ni" | "d" | "Tr" | "illum");
+        let known = matches!(kw, "Kd" | "Ks" | "Ke" | "Tf" | "Ns" | "Ni" | "d" | "Tr" | "illum" | "map_Kd" | "map_d");
         if !known {
             continue;
         }
@@ -187,6 +205,23 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<MtlLibrary> {
             continue;
         };
         match kw {
+            "map_Kd" | "map_d" => {
+                let rest = rest_of_line(line, kw);
+                // Options (`-s 1 1 1`, `-clamp on`, …) are not supported: the file is
+                // the last token then.
+                let name = if rest.starts_with('-') {
+                    lib.warnings.push(format!("{file}:{ln}: `{kw}` options are ignored"));
+                    args.last().copied().unwrap_or("")
+                } else {
+                    rest
+                };
+                if name.is_empty() {
+                    return Err(err(anyhow!("`{kw}` without a file name")));
+                }
+                let dir = path.parent().unwrap_or(Path::new(""));
+                let slot = if kw == "map_Kd" { &mut entry.map_kd } else { &mut entry.map_d };
+                *slot = Some(dir.join(name.replace('\\', "/")));
+            }
             "Kd" | "Ks" | "Ke" | "Tf" => {
                 let c = match args.first().copied() {
                     Some("spectral") => {
@@ -262,6 +297,7 @@ pub fn load_obj(path: &Path) -> Result<ObjFile> {
 /// A face corner's vertex reference as written: resolved position and normal index.
 struct Corner {
     v: i64,
+    t: Option<i64>,
     n: Option<i64>,
 }
 
@@ -288,19 +324,30 @@ fn parse_corner(tok: &str, nv: usize, nvt: usize, nvn: usize) -> anyhow::Result<
         }
     };
     let v = index(parts[0], nv, "vertex")?;
-    if let Some(t) = parts.get(1).filter(|s| !s.is_empty()) {
-        // Texture coordinates are not used; the index must still be well-formed.
-        index(t, nvt, "texture")?;
-    }
+    let t = match parts.get(1).filter(|s| !s.is_empty()) {
+        Some(t) => Some(index(t, nvt, "texture")?),
+        None => None,
+    };
     let n = match parts.get(2).filter(|s| !s.is_empty()) {
         Some(s) => Some(index(s, nvn, "normal")?),
         None => None,
     };
-    Ok(Corner { v, n })
+    Ok(Corner { v, t, n })
 }
 
 /// Parses an OBJ file's text; `path` locates `mtllib` files and names messages.
 pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
+    parse_obj_with(text, path, true)
+}
+
+/// Reads an OBJ file's geometry only (`mtllib` is not opened: Mitsuba's `obj` shape
+/// takes its material from the scene).
+pub fn load_obj_geometry(path: &Path) -> Result<ObjFile> {
+    let text = read_text(path).map_err(|e| anyhow!("{}: cannot read OBJ file: {e}", path.display()))?;
+    parse_obj_with(&text, path, false)
+}
+
+fn parse_obj_with(text: &str, path: &Path, read_mtl: bool) -> Result<ObjFile> {
     let file = path.display();
     let dir = path.parent().unwrap_or(Path::new(""));
     let mut out = ObjFile::default();
@@ -327,7 +374,13 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
                 }
                 if kw == "v" { &mut out.mesh.positions } else { &mut out.mesh.normals }.push(Vec3::from_array(c));
             }
-            "vt" => nvt += 1,
+            "vt" => {
+                nvt += 1;
+                // `vt u [v [w]]`; Mitsuba's texture space has v downwards.
+                let u = args.first().map(|a| parse_f32(a, "texture coordinate")).transpose().map_err(err)?.unwrap_or(0.0);
+                let v = args.get(1).map(|a| parse_f32(a, "texture coordinate")).transpose().map_err(err)?.unwrap_or(0.0);
+                out.uvs.uvs.push(Vec2::new(u, 1.0 - v));
+            }
             "f" => {
                 if args.len() < 3 {
                     return Err(err(anyhow!("face needs at least 3 vertices, got {}", args.len())));
@@ -355,7 +408,12 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
                         (Some(a), Some(b), Some(c)) => Some([idx(a), idx(b), idx(c)]),
                         _ => None,
                     };
+                    let t = match (tri[0].t, tri[1].t, tri[2].t) {
+                        (Some(a), Some(b), Some(c)) => Some([idx(a), idx(b), idx(c)]),
+                        _ => None,
+                    };
                     out.mesh.faces.push(Face { v: [idx(tri[0].v), idx(tri[1].v), idx(tri[2].v)], n, material: slot, line: line_no });
+                    out.uvs.faces.push(t);
                 }
             }
             "usemtl" => {
@@ -363,6 +421,7 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
                 let name = if name.is_empty() { None } else { Some(name.to_string()) };
                 current = Some(slot_index(&mut slots, name, ln));
             }
+            "mtllib" if !read_mtl => {}
             "mtllib" => {
                 let rest = rest_of_line(line, kw);
                 if rest.is_empty() {
@@ -399,6 +458,12 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
             bail!("{file}:{}: normal index {} is out of range ({nn} normals defined)", f.line, bad as u64 + 1);
         }
     }
+    let nt = out.uvs.uvs.len();
+    for (f, t) in out.mesh.faces.iter().zip(&out.uvs.faces) {
+        if let Some(&bad) = t.iter().flatten().find(|&&v| v as usize >= nt) {
+            bail!("{file}:{}: texture coordinate index {} is out of range ({nt} defined)", f.line, bad as u64 + 1);
+        }
+    }
     // Resolve material names: later libraries override earlier ones.
     let mut defined: HashMap<&str, &MtlEntry> = HashMap::new();
     for (_, lib) in &libraries {
@@ -408,6 +473,8 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjFile> {
         out.warnings.extend(lib.warnings.iter().cloned());
     }
     for (name, ln) in &slots {
+        let maps = name.as_ref().and_then(|n| defined.get(n.as_str())).map(|e| MtlMaps { kd: e.map_kd.clone(), d: e.map_d.clone() });
+        out.maps.push(maps.unwrap_or_default());
         let m = match name {
             None => default_material(DEFAULT_MATERIAL),
             Some(n) => match defined.get(n.as_str()) {

@@ -15,6 +15,7 @@
 //! so their statistic sits far below the chi-square law (p ≈ 1): the p-value is not
 //! calibrated there, but a wrong pdf still gives a huge statistic.
 
+mod env;
 mod lights;
 mod microfacet;
 
@@ -452,6 +453,7 @@ pub fn direction_cases(s: &Settings) -> Result<Vec<DirCase>> {
     // Mitsuba's BSDFs (their planted controls at the end).
     let (mitsuba_pass, mitsuba_planted): (Vec<_>, Vec<_>) = microfacet::cases(s).into_iter().partition(|c| c.expected == Outcome::Pass);
     v.extend(mitsuba_pass);
+    v.extend(env::env_cases()?);
     // Planted: Phong n = 10 samples against the n = 11 pdf; cosine samples against
     // the uniform-hemisphere pdf.
     let wo = from_theta(30.0);

@@ -1,0 +1,167 @@
+//! Image files for textures and environment maps: PNG, JPEG (8- or 16-bit, sRGB
+//! decoded to linear unless `raw`) and OpenEXR (linear), held as linear RGBA f32.
+
+use anyhow::{Result, anyhow, bail};
+use std::fmt;
+use std::io::Cursor;
+use std::path::Path;
+
+/// Largest image accepted (pixels), so a corrupt header cannot ask for terabytes.
+pub const MAX_PIXELS: u64 = 1 << 28;
+
+/// A linear RGBA image, row 0 at the top.
+#[derive(Clone, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major linear RGBA.
+    pub pixels: Vec<[f32; 4]>,
+    /// True when the file had an alpha channel.
+    pub has_alpha: bool,
+    /// Content hash (scene fingerprints).
+    pub hash: u64,
+}
+
+impl fmt::Debug for Image {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Image({}x{}, alpha {}, hash {:016x})", self.width, self.height, self.has_alpha, self.hash)
+    }
+}
+
+/// sRGB transfer function, decoding direction.
+#[inline]
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+impl Image {
+    /// Builds an image from pixels (computes the hash).
+    pub fn new(width: u32, height: u32, pixels: Vec<[f32; 4]>, has_alpha: bool) -> Result<Self> {
+        if width == 0 || height == 0 || pixels.len() as u64 != width as u64 * height as u64 {
+            bail!("image has an empty or inconsistent size {width}x{height}");
+        }
+        let mut h = crate::math::Fnv::default();
+        for p in &pixels {
+            for c in p {
+                h.write(&c.to_bits().to_le_bytes());
+            }
+        }
+        let hash = h.0;
+        Ok(Image { width, height, pixels, has_alpha, hash })
+    }
+
+    /// Pixel (x, y), both in range.
+    #[inline]
+    pub fn texel(&self, x: u32, y: u32) -> [f32; 4] {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// Reads an image file (kind by extension, case-insensitive).
+    pub fn load(path: &Path, raw: bool) -> Result<Image> {
+        let bytes = std::fs::read(path).map_err(|e| anyhow!("{}: cannot read image: {e}", path.display()))?;
+        let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        Self::decode(&bytes, &ext, raw).map_err(|e| anyhow!("{}: {e}", path.display()))
+    }
+
+    /// Decodes image bytes of the kind `ext` (`png`, `jpg`/`jpeg`, `exr`).
+    pub fn decode(bytes: &[u8], ext: &str, raw: bool) -> Result<Image> {
+        match ext {
+            "exr" => decode_exr(bytes),
+            "png" | "jpg" | "jpeg" => decode_ldr(bytes, ext, raw),
+            other => bail!("unsupported image format `.{other}` (png, jpg, jpeg, exr)"),
+        }
+    }
+}
+
+fn decode_ldr(bytes: &[u8], ext: &str, raw: bool) -> Result<Image> {
+    let format = if ext == "png" { image::ImageFormat::Png } else { image::ImageFormat::Jpeg };
+    let mut reader = image::ImageReader::with_format(Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(2 << 30);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| anyhow!("cannot decode {ext} image: {e}"))?;
+    let (w, h) = (img.width(), img.height());
+    if w as u64 * h as u64 > MAX_PIXELS {
+        bail!("image is too large ({w}x{h})");
+    }
+    let has_alpha = img.color().has_alpha();
+    let pixels: Vec<[f32; 4]> = if img.color().bytes_per_pixel() / img.color().channel_count() == 1 {
+        let mut lut = [0.0f32; 256];
+        for (i, v) in lut.iter_mut().enumerate() {
+            let x = i as f32 / 255.0;
+            *v = if raw { x } else { srgb_to_linear(x) };
+        }
+        img.to_rgba8().pixels().map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize], p[3] as f32 / 255.0]).collect()
+    } else {
+        let dec = |v: u16| {
+            let x = v as f32 / 65535.0;
+            if raw { x } else { srgb_to_linear(x) }
+        };
+        img.to_rgba16().pixels().map(|p| [dec(p[0]), dec(p[1]), dec(p[2]), p[3] as f32 / 65535.0]).collect()
+    };
+    Image::new(w, h, pixels, has_alpha)
+}
+
+fn decode_exr(bytes: &[u8]) -> Result<Image> {
+    use exr::prelude::*;
+    struct Buf {
+        w: usize,
+        px: Vec<[f32; 4]>,
+    }
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |res, _| {
+                let n = res.width() as u64 * res.height() as u64;
+                let n = if n > MAX_PIXELS { 0 } else { n as usize };
+                Buf { w: res.width(), px: vec![[0.0; 4]; n] }
+            },
+            |b: &mut Buf, pos, (r, g, bl, a): (f32, f32, f32, f32)| {
+                if let Some(p) = b.px.get_mut(pos.y() * b.w + pos.x()) {
+                    *p = [r, g, bl, a];
+                }
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(|e| anyhow!("cannot read EXR: {e}"))?;
+    let size = img.layer_data.size;
+    if size.width() as u64 * size.height() as u64 > MAX_PIXELS {
+        bail!("EXR image is too large ({}x{})", size.width(), size.height());
+    }
+    let has_alpha = img.layer_data.channel_data.channels.3.is_some();
+    let mut px = img.layer_data.channel_data.pixels.px;
+    for p in px.iter_mut() {
+        for c in p.iter_mut() {
+            if !c.is_finite() {
+                *c = 0.0;
+            }
+        }
+    }
+    crate::texture::Image::new(size.width() as u32, size.height() as u32, px, has_alpha)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn png_is_srgb_decoded_unless_raw() {
+        let mut buf = Vec::new();
+        let img = image::RgbImage::from_pixel(2, 1, image::Rgb([128, 255, 0]));
+        img.write_to(&mut Cursor::new(&mut buf), image::ImageFormat::Png).unwrap();
+        let a = Image::decode(&buf, "png", false).unwrap();
+        // sRGB 128/255 = 0.2158605 linear.
+        assert!((a.texel(0, 0)[0] - 0.215_860_5).abs() < 1e-5, "{:?}", a.texel(0, 0));
+        assert_eq!(a.texel(1, 0)[1], 1.0);
+        assert!(!a.has_alpha);
+        let r = Image::decode(&buf, "png", true).unwrap();
+        assert!((r.texel(0, 0)[0] - 128.0 / 255.0).abs() < 1e-6);
+        assert!(Image::decode(b"not an image", "png", false).is_err());
+        assert!(Image::decode(b"x", "gif", false).is_err());
+    }
+}
