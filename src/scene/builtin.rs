@@ -2,8 +2,10 @@
 //! `cornell-glass` (Jensen's box), `cornell-glossy` (glossy floor, sphere and box),
 //! `cornell-contact` (a cube on the floor and a sphere touching a corner),
 //! `leaky-box` (a closed box of zero-thickness walls lit only from outside),
-//! `furnace` (a closed emitting diffuse sphere, for energy checks) and
-//! `displaced-sphere` (≥ 1 M triangles, for acceleration benchmarks).
+//! `furnace` (a closed emitting diffuse sphere, for energy checks),
+//! `displaced-sphere` (≥ 1 M triangles, for acceleration benchmarks),
+//! `smooth-sphere` / `faceted-sphere` (a coarse 10 × 5-facet sphere with and without
+//! vertex normals, for shading normals and creases in photon estimates).
 
 use super::{Face, MeshData, Placement, Scene};
 use crate::camera::Camera;
@@ -13,8 +15,18 @@ use anyhow::{Result, bail};
 use glam::Vec3;
 
 /// Names of the built-in scenes.
-pub const BUILTINS: &[&str] =
-    &["cornell", "cornell-glass", "cornell-glossy", "cornell-contact", "leaky-box", "sun-slats", "furnace", "displaced-sphere"];
+pub const BUILTINS: &[&str] = &[
+    "cornell",
+    "cornell-glass",
+    "cornell-glossy",
+    "cornell-contact",
+    "leaky-box",
+    "sun-slats",
+    "furnace",
+    "displaced-sphere",
+    "smooth-sphere",
+    "faceted-sphere",
+];
 
 /// Builds a built-in scene by name.
 pub fn builtin(name: &str) -> Result<Scene> {
@@ -27,6 +39,8 @@ pub fn builtin(name: &str) -> Result<Scene> {
         "sun-slats" => Ok(sun_slats()),
         "furnace" => Ok(furnace(0.5, 1.0, 24)),
         "displaced-sphere" => Ok(displaced_sphere(710)),
+        "smooth-sphere" => Ok(coarse_sphere_box(true)),
+        "faceted-sphere" => Ok(coarse_sphere_box(false)),
         _ => bail!("unknown built-in scene `{name}` (known: {})", BUILTINS.join(", ")),
     }
 }
@@ -274,8 +288,12 @@ fn smooth_sphere(n: u32) -> MeshData {
 /// collapse and are dropped on loading), winding facing outward when `outward`,
 /// otherwise inward. `radius(θ, φ)` displaces it.
 pub fn uv_sphere(n: u32, outward: bool, radius: impl Fn(f32, f32) -> f32) -> MeshData {
+    uv_sphere_grid(n, n, outward, radius)
+}
+
+/// [`uv_sphere`] with `nu` segments around and `nv` rings from pole to pole.
+pub fn uv_sphere_grid(nu: u32, nv: u32, outward: bool, radius: impl Fn(f32, f32) -> f32) -> MeshData {
     let mut m = MeshData::default();
-    let (nu, nv) = (n, n);
     for j in 0..=nv {
         for i in 0..nu {
             let th = std::f32::consts::PI * j as f32 / nv as f32;
@@ -330,6 +348,50 @@ pub fn displaced_sphere(n: u32) -> Scene {
     s
 }
 
+/// A coarse diffuse sphere in a closed box (shading normals and creases in photon
+/// estimates): a 10 × 5-facet UV sphere (10 segments, 5 rings: 36° creases) of
+/// radius 0.5 and albedo 0.7, with radial vertex normals (`smooth-sphere`, smooth
+/// shading) or without (`faceted-sphere`), in a closed 2 × 2 × 2 box (white floor,
+/// ceiling and back wall, red left and green right wall, one-sided walls facing in)
+/// lit by a 0.6 × 0.6 area light under the ceiling. With vertex normals `path`
+/// shades the facets with the interpolated normal while photons land per geometric
+/// area, so a photon estimator agrees with `path` only when it corrects for the
+/// difference (Veach 1997, §5.3).
+pub fn coarse_sphere_box(vertex_normals: bool) -> Scene {
+    let mut m = MeshData {
+        materials: vec![
+            Material::diffuse("white", Color::splat(0.7)),
+            Material::diffuse("red", Color::new(0.63, 0.1, 0.08)),
+            Material::diffuse("green", Color::new(0.14, 0.45, 0.1)),
+            Material { emission: Color::splat(12.0), ..Material::diffuse("light", Color::splat(0.7)) },
+        ],
+        ..Default::default()
+    };
+    let (white, red, green, light) = (0, 1, 2, 3);
+    // The unit cube's faces wound inward (reversed), scaled to x, z ∈ [-1, 1], y ∈ [0, 2].
+    let inward = unit_cube_quads().map(|q| [q[3], q[2], q[1], q[0]].map(|p| [p[0], p[1] + 1.0, p[2]]));
+    // Faces: +z (front), −z (back), +x (right), −x (left), +y (ceiling), −y (floor).
+    add_quads(&mut m, &[inward[0], inward[1], inward[4], inward[5]], white);
+    add_quads(&mut m, &[inward[3]], red);
+    add_quads(&mut m, &[inward[2]], green);
+    add_quads(&mut m, &[[[-0.3, 1.99, -0.3], [0.3, 1.99, -0.3], [0.3, 1.99, 0.3], [-0.3, 1.99, 0.3]]], light);
+    let cam = Camera::new(Vec3::new(0.0, 1.0, 0.97), Vec3::new(0.0, 0.75, -0.3), Vec3::Y, 66.0, 128, 128).expect("valid camera");
+    let name = if vertex_normals { "smooth-sphere" } else { "faceted-sphere" };
+    let mut s = Scene::new(name, cam);
+    s.add_mesh(&m, &Placement::default(), None).expect("box geometry is valid");
+    let mut sphere = uv_sphere_grid(10, 5, true, |_, _| 1.0);
+    if vertex_normals {
+        sphere.normals = sphere.positions.iter().map(|p| p.normalize()).collect();
+        for f in &mut sphere.faces {
+            f.n = Some(f.v);
+        }
+    }
+    sphere.materials.push(Material::diffuse("sphere", Color::splat(0.7)));
+    let place = Placement { scale: Vec3::splat(0.5), rotate_y_deg: 0.0, translate: Vec3::new(0.0, 0.7, -0.3) };
+    s.add_mesh(&sphere, &place, None).expect("sphere geometry is valid");
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -363,6 +425,24 @@ mod tests {
         let s = leaky_box();
         let lamp: Vec<u32> = (0..s.triangles.len() as u32).filter(|&i| s.material(i).is_emitter()).collect();
         assert!(lamp.iter().all(|&i| s.geometric_normal(i).y < -0.99));
+    }
+
+    #[test]
+    fn coarse_sphere_boxes_face_inward_and_differ_only_in_normals() {
+        let (smooth, faceted) = (coarse_sphere_box(true), coarse_sphere_box(false));
+        for s in [&smooth, &faceted] {
+            assert!(s.validate().is_ok());
+            // 6 walls + light = 14 triangles; 10 × 5 grid = 100, less 20 at the poles.
+            assert_eq!(s.triangles.len(), 14 + 80, "{}", s.name);
+            for i in 0..14u32 {
+                let t = &s.triangles[i as usize];
+                let c = (t[0] + t[1] + t[2]) / 3.0;
+                assert!(s.geometric_normal(i).dot(Vec3::new(0.0, 1.0, 0.0) - c) > 0.0, "{}: wall {i} faces out", s.name);
+            }
+        }
+        assert_eq!(smooth.triangles, faceted.triangles);
+        assert_ne!(smooth.normals.len(), faceted.normals.len());
+        assert_eq!(builtin("smooth-sphere").unwrap().name, "smooth-sphere");
     }
 
     #[test]
