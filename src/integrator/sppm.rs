@@ -43,7 +43,7 @@ use crate::film::Film;
 use crate::integrator::render::RenderStats;
 use crate::material::{ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
-use crate::photon::{MapKind, RawPhoton, trace_path_in};
+use crate::photon::{MapKind, RawPhoton, estimate, trace_path_in};
 use crate::rr::{RrContext, RussianRoulette, roulette};
 use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
 use crate::world::World;
@@ -607,8 +607,22 @@ pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u
     let ns = if cos_o >= 0.0 { vp.sp.ns() } else { -vp.sp.ns() };
     let lit = cos_o != 0.0 && vp.wo.dot(vp.sp.ng) != 0.0;
     let (mut m, mut diffuse, mut lobe) = (0u64, DVec3::ZERO, DVec3::ZERO);
-    grid.for_each_within(vp.p, r, |ph| {
+    // Photons beyond a surface close to the visible point's tangent plane (the lit top
+    // of a thin ceiling over a panel's upper side) are not its own: the distances to
+    // the nearest surfaces in front and behind, each measured once, when a photon off
+    // the plane asks ([`estimate::keep_this_side`]).
+    let tiny = estimate::off_plane_tolerance(vp.p);
+    let (mut front, mut back) = (None, None);
+    let mut stats = TraversalStats::default();
+    grid.for_each_within(vp.p, r, |pos, ph| {
         if ph.normal.dot(vp.n) < NORMAL_COS || ph.dir.dot(vp.n) <= 0.0 {
+            return;
+        }
+        let h = (pos - vp.p).dot(vp.n);
+        if h > tiny && h > 0.5 * *front.get_or_insert_with(|| estimate::free_distance(world, vp.p, vp.n, vp.n, 2.0 * r, &mut stats)) {
+            return;
+        }
+        if h < -tiny && -h > 0.5 * *back.get_or_insert_with(|| estimate::free_distance(world, vp.p, vp.n, -vp.n, 2.0 * r, &mut stats)) {
             return;
         }
         m += 1;

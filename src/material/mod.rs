@@ -51,6 +51,33 @@ impl ShadingPoint {
     pub fn ns(&self) -> Vec3 {
         self.frame.n
     }
+
+    /// |w·n_s| / |w·n_g|: light crossing the surface along `w` per unit geometric area
+    /// (what photons carry) times this is the cosine-weighted measure that radiance
+    /// transport with shading normals uses (`path`: L_o = ∫ f L_i |ω_i·n_s| dω_i).
+    /// Exactly 1 without vertex normals; 0 for `w` in the geometric plane.
+    #[inline]
+    pub fn shading_to_geometric(&self, w: Vec3) -> f32 {
+        if self.ns() == self.ng {
+            return 1.0;
+        }
+        let g = w.dot(self.ng).abs();
+        if g == 0.0 { 0.0 } else { w.dot(self.ns()).abs() / g }
+    }
+
+    /// The adjoint correction for shading normals when importance (photons) scatters
+    /// from `wo` (towards where the photon came from) into `wi`: |wo·n_s| |wi·n_g| /
+    /// (|wo·n_g| |wi·n_s|) (Veach 1997, §5.3; pbrt's `CorrectShadingNormal`). The
+    /// sampling weight f |wi·n_s| / pdf times it is the flux carried on per unit of
+    /// the arriving flux. Exactly 1 without vertex normals.
+    #[inline]
+    pub fn importance_correction(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if self.ns() == self.ng {
+            return 1.0;
+        }
+        let den = wo.dot(self.ng).abs() * wi.dot(self.ns()).abs();
+        if den == 0.0 { 0.0 } else { wo.dot(self.ns()).abs() * wi.dot(self.ng).abs() / den }
+    }
 }
 
 /// One sampled scattering direction.

@@ -197,17 +197,92 @@ pub fn radiance<M: PhotonSearch + ?Sized>(
     prm: &EstimateParams,
     heap: &mut KnnHeap,
 ) -> Color {
+    radiance_in(None, map, it, wo, bsdf, prm, heap)
+}
+
+/// The scene an estimate can cast rays into to keep only the photons on the query's
+/// own side of nearby surfaces ([`keep_this_side`]), and the counters of those rays.
+pub type Surroundings<'a, 'b> = Option<(&'a World, &'b mut TraversalStats)>;
+
+/// [`radiance`] that, given the scene, drops the photons lying beyond a surface close
+/// to the query's tangent plane ([`keep_this_side`]).
+pub fn radiance_in<M: PhotonSearch + ?Sized>(
+    world: Surroundings,
+    map: &M,
+    it: &Interaction,
+    wo: Vec3,
+    bsdf: &Bsdf,
+    prm: &EstimateParams,
+    heap: &mut KnnHeap,
+) -> Color {
     match bsdf {
         // The common case, without a BSDF evaluation per photon: albedo/π times the
         // summed power of the photons the surface reflects towards `wo` (which needs
         // only the signs of their directions, so no normalisation either).
         Bsdf::Lambertian(m) => {
             let test = LambertianReflects::towards(&it.sp, wo);
-            radiance_sum(map, it, wo, prm, heap, |m, i| if test.from(m.direction_side(i)) { m.power(i) } else { Color::ZERO })
+            radiance_sum(world, map, it, wo, prm, heap, |m, i| if test.from(m.direction_side(i)) { m.power(i) } else { Color::ZERO })
                 * (m.albedo * std::f32::consts::FRAC_1_PI)
         }
-        _ => radiance_with(map, it, wo, prm, heap, |wi| bsdf.eval(&it.sp, wo, wi)),
+        _ => radiance_sum(world, map, it, wo, prm, heap, |m, i| bsdf.eval(&it.sp, wo, m.direction(i)) * m.power(i)),
     }
+}
+
+/// Drops from a search's results the photons that lie beyond a surface close to the
+/// query's tangent plane: a zero-thickness ceiling 1 cm above a panel faces the same
+/// way as the panel's upper side, so the photons on its lit top pass the normal test
+/// and, for any disc thicker than 1 cm, the plane test, and light the dark gap. When
+/// a result lies off the plane by more than rounding (height h along `n`), one ray
+/// from `p` along n (or −n for photons behind, starting past the query's own surface)
+/// looks for a surface within 2|h|; photons farther than half its distance t (h >
+/// t/2) are nearer that surface than the query's and are dropped. A curved or
+/// creased surface's own photons lie off the plane too, but no other surface is that
+/// close there, and the kept photons are still every accepted one within the search
+/// radius, so the estimate stays a density over the same region.
+pub fn keep_this_side<M: PhotonSearch + ?Sized>(world: &World, map: &M, p: Vec3, n: Vec3, heap: &mut KnnHeap, stats: &mut TraversalStats) {
+    let tiny = off_plane_tolerance(p);
+    let (mut hi, mut lo) = (0.0f32, 0.0f32);
+    for &(_, i) in &heap.items {
+        let h = (map.photon_position(i as usize) - p).dot(n);
+        (hi, lo) = (hi.max(h), lo.min(h));
+    }
+    let front = if hi > tiny { free_distance(world, p, n, n, 2.0 * hi, stats) } else { f32::INFINITY };
+    let back = if lo < -tiny { free_distance(world, p, n, -n, -2.0 * lo, stats) } else { f32::INFINITY };
+    if 0.5 * front >= hi && 0.5 * back >= -lo {
+        return;
+    }
+    heap.items.retain(|&(_, i)| {
+        let h = (map.photon_position(i as usize) - p).dot(n);
+        h <= 0.5 * front && h >= -0.5 * back
+    });
+}
+
+/// Heights off a query's tangent plane below which a photon or point counts as lying
+/// on it (rounding of coordinates of magnitude `p`).
+#[inline]
+pub fn off_plane_tolerance(p: Vec3) -> f32 {
+    1e-4 * (1.0 + p.abs().max_element())
+}
+
+/// Distance from the surface point `p` (facing geometric normal `n`) along `dir`
+/// (±n) to the first surface within `reach` (∞ when none); a ray along −n starts
+/// past the point's own surface.
+pub fn free_distance(world: &World, p: Vec3, n: Vec3, dir: Vec3, reach: f32, stats: &mut TraversalStats) -> f32 {
+    let o = crate::geometry::offset_origin(p, n, dir);
+    let ray = Ray::new(o, crate::geometry::off_axis(dir));
+    world.accel.intersect(&ray, reach, stats).map_or(f32::INFINITY, |h| h.t + (o - p).dot(dir).abs())
+}
+
+/// True when a point at `q` (a precomputed-irradiance point found for a query at `p`
+/// with facing normal `n`) lies on the query's side of every nearby surface: the
+/// test of [`keep_this_side`] for one point.
+pub fn on_this_side(world: &World, p: Vec3, n: Vec3, q: Vec3, stats: &mut TraversalStats) -> bool {
+    let h = (q - p).dot(n);
+    if h.abs() <= off_plane_tolerance(p) {
+        return true;
+    }
+    let dir = if h > 0.0 { n } else { -n };
+    0.5 * free_distance(world, p, n, dir, 2.0 * h.abs(), stats) >= h.abs()
 }
 
 /// Radiance estimate with an arbitrary reflectance `f(wi)` per photon (e.g. only the
@@ -215,6 +290,7 @@ pub fn radiance<M: PhotonSearch + ?Sized>(
 /// photons that arrived on the side the query looks from count: their stored normal
 /// (the geometric normal on their arrival side) must agree with the one facing `wo`.
 pub fn radiance_with<M: PhotonSearch + ?Sized>(
+    world: Surroundings,
     map: &M,
     it: &Interaction,
     wo: Vec3,
@@ -222,13 +298,14 @@ pub fn radiance_with<M: PhotonSearch + ?Sized>(
     heap: &mut KnnHeap,
     f: impl Fn(Vec3) -> Color,
 ) -> Color {
-    radiance_sum(map, it, wo, prm, heap, |m, i| f(m.direction(i)) * m.power(i))
+    radiance_sum(world, map, it, wo, prm, heap, |m, i| f(m.direction(i)) * m.power(i))
 }
 
 /// The estimate Σ w·`term(photon)` / (norm·π r²) over the photons gathered at `it`
 /// (facing `wo`).
 #[inline]
 fn radiance_sum<M: PhotonSearch + ?Sized>(
+    world: Surroundings,
     map: &M,
     it: &Interaction,
     wo: Vec3,
@@ -241,6 +318,9 @@ fn radiance_sum<M: PhotonSearch + ?Sized>(
     }
     let n = facing_normal(it, wo);
     let r2 = map.gather(it.p, n, prm, heap);
+    if let Some((world, stats)) = world {
+        keep_this_side(world, map, it.p, n, heap, stats);
+    }
     if heap.items.is_empty() || r2 <= 0.0 {
         return Color::ZERO;
     }
@@ -254,15 +334,25 @@ fn radiance_sum<M: PhotonSearch + ?Sized>(
 /// Irradiance at a point with normal `n` (photons arriving on `n`'s side), as used by
 /// precomputed irradiance: E = Σ Φ w / (norm·π r²).
 pub fn irradiance<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> Color {
-    irradiance_r2(map, p, n, prm, heap).0
+    irradiance_r2(None, map, p, n, prm, heap).0
 }
 
 /// [`irradiance`] and the squared radius it used (0 without photons).
-fn irradiance_r2<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> (Color, f32) {
+fn irradiance_r2<M: PhotonSearch + ?Sized>(
+    world: Surroundings,
+    map: &M,
+    p: Vec3,
+    n: Vec3,
+    prm: &EstimateParams,
+    heap: &mut KnnHeap,
+) -> (Color, f32) {
     if map.is_empty() {
         return (Color::ZERO, 0.0);
     }
     let r2 = map.gather(p, n, prm, heap);
+    if let Some((world, stats)) = world {
+        keep_this_side(world, map, p, n, heap, stats);
+    }
     if heap.items.is_empty() || r2 <= 0.0 {
         return (Color::ZERO, 0.0);
     }
@@ -344,7 +434,7 @@ pub fn irradiance_covered<M: PhotonSearch + ?Sized>(
     heap: &mut KnnHeap,
     stats: &mut TraversalStats,
 ) -> Color {
-    let (e, r2) = irradiance_r2(map, p, n, prm, heap);
+    let (e, r2) = irradiance_r2(Some((world, &mut *stats)), map, p, n, prm, heap);
     if prm.area_probes == 0 || e.max_element() <= 0.0 || fills_disc(map, heap, p, n, r2) {
         return e;
     }

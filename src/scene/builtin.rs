@@ -5,7 +5,8 @@
 //! `furnace` (a closed emitting diffuse sphere, for energy checks),
 //! `displaced-sphere` (≥ 1 M triangles, for acceleration benchmarks),
 //! `smooth-sphere` / `faceted-sphere` (a coarse 10 × 5-facet sphere with and without
-//! vertex normals, for shading normals and creases in photon estimates).
+//! vertex normals, for shading normals and creases in photon estimates) and
+//! `lamp-panel` (a thin panel hanging 1 cm under a ceiling lit from above).
 
 use super::{Face, MeshData, Placement, Scene};
 use crate::camera::Camera;
@@ -41,6 +42,7 @@ pub fn builtin(name: &str) -> Result<Scene> {
         "displaced-sphere" => Ok(displaced_sphere(710)),
         "smooth-sphere" => Ok(coarse_sphere_box(true)),
         "faceted-sphere" => Ok(coarse_sphere_box(false)),
+        "lamp-panel" => Ok(lamp_panel()),
         _ => bail!("unknown built-in scene `{name}` (known: {})", BUILTINS.join(", ")),
     }
 }
@@ -389,6 +391,39 @@ pub fn coarse_sphere_box(vertex_normals: bool) -> Scene {
     sphere.materials.push(Material::diffuse("sphere", Color::splat(0.7)));
     let place = Placement { scale: Vec3::splat(0.5), rotate_y_deg: 0.0, translate: Vec3::new(0.0, 0.7, -0.3) };
     s.add_mesh(&sphere, &place, None).expect("sphere geometry is valid");
+    s
+}
+
+/// A thin panel under a lit ceiling: a closed room (4 × 2.5 × 4 m) of zero-thickness
+/// walls, lit only from outside by an area light above its roof (under a canopy that
+/// sends light back down), with a zero-thickness panel (1.2 × 1.2 m, both sides
+/// reflect) hanging 1 cm under the ceiling, seen from below. Nothing reaches the
+/// inside, so the correct image is black (`path` ~1e-8): an estimate that borrows
+/// the roof's photons or precomputed irradiance across the 1 cm gap (the panel's
+/// upper side faces the same way as the roof, within any disc's thickness) lights
+/// the room.
+pub fn lamp_panel() -> Scene {
+    let mut m = MeshData {
+        materials: vec![
+            Material::diffuse("wall", Color::splat(0.7)),
+            Material { emission: Color::splat(20.0), ..Material::diffuse("lamp", Color::splat(0.5)) },
+            Material::diffuse("canopy", Color::splat(0.8)),
+            Material::diffuse("panel", Color::splat(0.8)),
+        ],
+        ..Default::default()
+    };
+    let (wall, lamp, canopy, panel) = (0, 1, 2, 3);
+    // The room: the unit cube's faces scaled to x, z ∈ [0, 4], y ∈ [0, 2.5].
+    let room = unit_cube_quads().map(|q| q.map(|p| [2.0 * (p[0] + 1.0), 1.25 * (p[1] + 1.0), 2.0 * (p[2] + 1.0)]));
+    add_quads(&mut m, &room, wall);
+    // Lamp facing down over the roof, and a canopy facing down above it.
+    add_quads(&mut m, &[[[1.2, 3.0, 1.2], [2.8, 3.0, 1.2], [2.8, 3.0, 2.8], [1.2, 3.0, 2.8]]], lamp);
+    add_quads(&mut m, &[[[-2.0, 3.6, -2.0], [6.0, 3.6, -2.0], [6.0, 3.6, 6.0], [-2.0, 3.6, 6.0]]], canopy);
+    // The panel, 1 cm under the ceiling (y = 2.5), facing down.
+    add_quads(&mut m, &[[[1.4, 2.49, 1.4], [2.6, 2.49, 1.4], [2.6, 2.49, 2.6], [1.4, 2.49, 2.6]]], panel);
+    let cam = Camera::new(Vec3::new(2.0, 0.9, 3.8), Vec3::new(2.0, 2.2, 2.0), Vec3::Y, 70.0, 128, 128).expect("valid camera");
+    let mut s = Scene::new("lamp-panel", cam);
+    s.add_mesh(&m, &Placement::default(), None).expect("room geometry is valid");
     s
 }
 
