@@ -383,44 +383,86 @@ pub fn coverage(world: &World, p: Vec3, n: Vec3, r2: f32, prm: &EstimateParams, 
     if m == 0 || r2 <= 0.0 {
         return 1.0;
     }
-    let r = r2.sqrt();
-    let thick = (prm.disc * prm.max_radius).max(1e-4 * r);
-    let frame = Frame::new(n);
-    let down = crate::geometry::off_axis(-n);
+    let thick = (prm.disc * prm.max_radius).max(1e-4 * r2.sqrt());
     let rot = u32_to_unit((seed >> 32) as u32) * std::f32::consts::TAU;
+    let (got, flat) = coverage_sums(world, p, n, r2, thick, prm.normal_cos, prm.filter, m, rot, stats);
+    if flat <= 0.0 { 1.0 } else { (got / flat).clamp(0.05, 2.0) }
+}
+
+/// The probe of [`coverage`] (also `sppm`'s, over its whole ball): `m` points of the
+/// golden-angle spiral over the disc of radius √`r2` about `p` in the plane normal to
+/// `n`, rotated by `rot`, each probing the slab ±`thick` with [`probe_surface`].
+/// Returns Σ w·(1/cos) over the probes that found surface and Σ w over all (w the
+/// kernel weight at the probe's distance).
+#[allow(clippy::too_many_arguments)]
+pub fn coverage_sums(
+    world: &World,
+    p: Vec3,
+    n: Vec3,
+    r2: f32,
+    thick: f32,
+    normal_cos: f32,
+    filter: Filter,
+    m: u32,
+    rot: f32,
+    stats: &mut TraversalStats,
+) -> (f32, f32) {
+    let r = r2.sqrt();
+    let frame = Frame::new(n);
+    // Off the axes: probes along axis-aligned normals would get no BVH culling.
+    let down = crate::geometry::off_axis(-n);
     let (mut flat, mut got) = (0.0f32, 0.0f32);
     for j in 0..m {
         let s2 = (j as f32 + 0.5) / m as f32;
         let phi = rot + j as f32 * GOLDEN_ANGLE;
-        flat += prm.filter.weight(s2);
+        flat += filter.weight(s2);
         let x = p + (frame.s * phi.cos() + frame.t * phi.sin()) * (r * s2.sqrt());
-        let mut o = x + n * thick;
-        let mut left = 2.0 * thick;
-        for _ in 0..4 {
-            // Off the axes: probes along axis-aligned normals would get no BVH culling.
-            let ray = Ray::new(o, down);
-            let Some(hit) = world.accel.intersect(&ray, left, stats) else { break };
-            let it = world.interaction(&ray, &hit);
-            let cos = it.sp.ng.dot(n).abs();
-            // Mirrors and glass hold no photons, and a surface outside the sphere (the
-            // far side of an object standing on the surface) hides none of the area
-            // inside it: look past both.
-            if cos >= prm.normal_cos && !world.material(&it).bsdf.is_delta() {
-                let d2 = (it.p - p).length_squared();
-                if d2 < r2 {
-                    got += prm.filter.weight(d2 / r2) / cos;
-                    break;
-                }
-            }
-            let step = hit.t + 1e-4 * r;
-            o -= n * step;
-            left -= step;
-            if left <= 0.0 {
-                break;
-            }
+        if let Some((d2, cos)) = probe_surface(world, x + n * thick, down, 2.0 * thick, p, r2, n, normal_cos, stats) {
+            got += filter.weight(d2 / r2) / cos;
         }
     }
-    if flat <= 0.0 { 1.0 } else { (got / flat).clamp(0.05, 2.0) }
+    (got, flat)
+}
+
+/// One probe ray from `o` along `down` (≈ −`n`) over `len`: the first non-specular
+/// surface met whose normal passes the photon filter's test (|n_h·n| ≥ `normal_cos`)
+/// and that lies inside the ball of radius² `r2` about `p`, as (its distance² to `p`,
+/// |n_h·n|). Mirrors and glass hold no photons, and a surface outside the ball (the
+/// far side of an object standing on the surface) hides none of the area inside it:
+/// the probe looks past both (up to four surfaces).
+#[allow(clippy::too_many_arguments)]
+pub fn probe_surface(
+    world: &World,
+    mut o: Vec3,
+    down: Vec3,
+    len: f32,
+    p: Vec3,
+    r2: f32,
+    n: Vec3,
+    normal_cos: f32,
+    stats: &mut TraversalStats,
+) -> Option<(f32, f32)> {
+    let mut left = len;
+    let nudge = 1e-4 * r2.sqrt();
+    for _ in 0..4 {
+        let ray = Ray::new(o, down);
+        let hit = world.accel.intersect(&ray, left, stats)?;
+        let it = world.interaction(&ray, &hit);
+        let cos = it.sp.ng.dot(n).abs();
+        if cos >= normal_cos && !world.material(&it).bsdf.is_delta() {
+            let d2 = (it.p - p).length_squared();
+            if d2 < r2 {
+                return Some((d2, cos));
+            }
+        }
+        let step = hit.t + nudge;
+        o -= n * step;
+        left -= step;
+        if left <= 0.0 {
+            break;
+        }
+    }
+    None
 }
 
 /// Irradiance estimate whose area is the surface inside the region ([`coverage`]),
