@@ -24,10 +24,11 @@
 //!    ~45°, the photon coming from the visible point's hemisphere).
 //! 4. **Update** (per pixel): N' = N + αM, r' = r √(N'/(N + M)), τ' = (τ + βΦ) r'²/r².
 //!
-//! The image after p passes is L = Σ L_direct / p + τ / (p·M·π r²·a), where a is the
-//! share of the disc covered by surface, measured by `sppm_area_probes` probe rays per
-//! pass ([`area_probe`]; 1 without probes): near edges and corners part of the disc
-//! holds no surface and no photons, which otherwise darkens them (boundary bias).
+//! The image after p passes is L = Σ L_direct / p + τ / (p·M·π r²), where each pass's
+//! flux has been divided by its visible point's covered share a of the ball
+//! ([`gather_covered`]: `sppm_area_probes` probe rays where the ball leaves the
+//! visible point's triangle; 1 without probes): near edges and corners part of the
+//! disc holds no surface and no photons, which otherwise darkens them (boundary bias).
 //!
 //! Determinism: the camera pass and the gather run per pixel; photons are merged in
 //! path order and the grid is filled in that order, so each pixel adds its photons
@@ -43,7 +44,7 @@ use crate::film::Film;
 use crate::integrator::render::RenderStats;
 use crate::material::{ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
-use crate::photon::{MapKind, RawPhoton, trace_path_in};
+use crate::photon::{MapKind, RawPhoton, estimate, trace_path_in};
 use crate::rr::{RrContext, RussianRoulette, roulette};
 use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
 use crate::world::World;
@@ -85,8 +86,8 @@ crate::params! {
         sppm_direct: String = "trace",
         /// After the first pass, a pixel whose disc caught more than this × the median photon count keeps only that many and its radius shrinks to match (a smaller start where light is dense, e.g. caustics); 0 = off.
         sppm_density_cap: f32 = "1",
-        /// Probe rays per visible point and pass that measure the share of its disc covered by surface (edges, corners: boundary bias); 0 divides by π r².
-        sppm_area_probes: u32 = "1",
+        /// Probe rays per visible point and pass, where its disc leaves its triangle, that measure the share of its ball holding surface (edges, corners: boundary bias); 0 divides by π r².
+        sppm_area_probes: u32 = "8",
     }
 }
 
@@ -161,16 +162,12 @@ pub struct PixelStats {
     pub n: f64,
     /// Current radius.
     pub r: f64,
-    /// Area probes that found surface inside the disc, over all passes.
-    pub area_hits: f64,
-    /// Area probes cast, over all passes.
-    pub area_probes: f64,
 }
 
 impl PixelStats {
     /// Fresh statistics with radius `r`.
     pub fn new(r: f64) -> Self {
-        PixelStats { ld: DVec3::ZERO, tau: DVec3::ZERO, n: 0.0, r, area_hits: 0.0, area_probes: 0.0 }
+        PixelStats { ld: DVec3::ZERO, tau: DVec3::ZERO, n: 0.0, r }
     }
     /// Folds in one pass's gather: `m` photons with summed flux `phi` (β applied).
     pub fn update(&mut self, m: u64, phi: DVec3, alpha: f64) {
@@ -190,32 +187,19 @@ impl PixelStats {
         self.r = r_new;
     }
     /// The statistics as bit patterns (checkpoints).
-    pub fn to_bits(&self) -> [u64; 10] {
-        let v = [self.ld.x, self.ld.y, self.ld.z, self.tau.x, self.tau.y, self.tau.z, self.n, self.r, self.area_hits, self.area_probes];
+    pub fn to_bits(&self) -> [u64; 8] {
+        let v = [self.ld.x, self.ld.y, self.ld.z, self.tau.x, self.tau.y, self.tau.z, self.n, self.r];
         v.map(f64::to_bits)
     }
     /// Inverse of [`PixelStats::to_bits`].
-    pub fn from_bits(b: &[u64; 10]) -> Self {
+    pub fn from_bits(b: &[u64; 8]) -> Self {
         let v = b.map(f64::from_bits);
-        PixelStats {
-            ld: DVec3::new(v[0], v[1], v[2]),
-            tau: DVec3::new(v[3], v[4], v[5]),
-            n: v[6],
-            r: v[7],
-            area_hits: v[8],
-            area_probes: v[9],
-        }
-    }
-    /// Share of the disc covered by surface, from the area probes: (hits + 1) /
-    /// (probes + 1), so 1 without probes and before the first one; it tends to the
-    /// true share as probes accumulate, and to 1 off edges as the radius shrinks.
-    pub fn area_share(&self) -> f64 {
-        (self.area_hits + 1.0) / (self.area_probes + 1.0)
+        PixelStats { ld: DVec3::new(v[0], v[1], v[2]), tau: DVec3::new(v[3], v[4], v[5]), n: v[6], r: v[7] }
     }
     /// Radiance estimate after `passes` passes of `photons` emitted paths each.
     pub fn radiance(&self, passes: u32, photons: u64) -> Color {
         let p = passes.max(1) as f64;
-        let flux = self.tau / (p * photons as f64 * std::f64::consts::PI * self.r * self.r * self.area_share());
+        let flux = self.tau / (p * photons as f64 * std::f64::consts::PI * self.r * self.r);
         (self.ld / p + flux).as_vec3()
     }
 }
@@ -356,6 +340,8 @@ impl SppmIntegrator {
         // Every pass traces photon indices 0 … M − 1 of a stream of its own.
         let emit_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, Some(m))?;
         let probes = self.set.p.sppm_area_probes;
+        let seed = self.cfg.seed;
+        let probe_key = |pixel: usize, pass: u32| hash_words(&[seed, pixel as u64, pass as u64, 0xA2EA]);
         let keep_first = self.set.p.sppm_direct == "photons";
         let n_direct = self.set.direct.direct_samples.max(1) as u64;
         let direct_sampler = crate::sampler::make(&self.set.direct.direct_sampler, self.cfg.seed, Some(n_direct))?;
@@ -366,7 +352,7 @@ impl SppmIntegrator {
         let mut photon_rays = TraversalStats::default();
         let mut pass = 0u32;
         let mut film = Film::new(w, h);
-        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 10]>>(&self.cfg, &self.set.prog, world)? {
+        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 8]>>(&self.cfg, &self.set.prog, world)? {
             if saved.len() != npix {
                 bail!("checkpoint holds {} pixels, the image has {npix}", saved.len());
             }
@@ -406,14 +392,7 @@ impl SppmIntegrator {
                             } else {
                                 bad += 1;
                             }
-                            if let Some(v) = &v {
-                                let key = hash_words(&[self.cfg.seed, y as u64 * w as u64 + x as u64, pass as u64, 0xA2EA]);
-                                for j in 0..probes {
-                                    let h = crate::math::mix64(key ^ j as u64);
-                                    let u = [crate::math::u32_to_unit(h as u32), crate::math::u32_to_unit((h >> 32) as u32)];
-                                    px.area_hits += area_probe(world, v, px.r as f32, u, &mut st) as u32 as f64;
-                                }
-                                px.area_probes += probes as f64;
+                            if v.is_some() {
                                 r_max = r_max.max(px.r);
                             }
                             *vp = v;
@@ -482,7 +461,10 @@ impl SppmIntegrator {
                     vps.par_iter()
                         .zip(pixels.par_iter())
                         .with_max_len(GATHER_GRAIN)
-                        .map(|(vp, px)| vp.as_ref().map(|vp| gather(world, &grid, vp, px.r as f32)))
+                        .enumerate()
+                        .map(|(i, (vp, px))| {
+                            vp.as_ref().map(|vp| gather_covered(world, &grid, vp, px.r as f32, probes, probe_key(i, pass)))
+                        })
                         .collect_into_vec(&mut found);
                     let cap = cap_factor * alpha * median_count(&found);
                     let cap = if cap > 0.0 { cap } else { f64::INFINITY };
@@ -492,9 +474,9 @@ impl SppmIntegrator {
                         }
                     });
                 } else {
-                    pixels.par_iter_mut().zip(vps.par_iter()).with_max_len(GATHER_GRAIN).for_each(|(px, vp)| {
+                    pixels.par_iter_mut().zip(vps.par_iter()).with_max_len(GATHER_GRAIN).enumerate().for_each(|(i, (px, vp))| {
                         if let Some(vp) = vp {
-                            let (mm, phi) = gather(world, &grid, vp, px.r as f32);
+                            let (mm, phi) = gather_covered(world, &grid, vp, px.r as f32, probes, probe_key(i, pass));
                             px.update(mm, phi * vp.beta.as_dvec3(), alpha);
                         }
                     });
@@ -587,28 +569,42 @@ pub fn photon_stream(pass: u32) -> u64 {
     hash_words(&[pass as u64, 0x5991]) | 1 << 63
 }
 
-/// One area probe (Hey & Purgathofer's boundary-bias correction, as the precomputed
-/// irradiance's `area_probes`): a point uniform in the visible point's disc of radius
-/// `r` on its tangent plane, and a ray from `r/4` above it down to `r/4` below. True
-/// when the ray meets a surface facing like the visible point's (normals within
-/// ~45°, as the gather's photon test) inside that slab: surface photons can land on.
-/// Near an edge or corner part of the disc holds no surface, so the photon density
-/// divided by π r² is too low there by that share.
-pub fn area_probe(world: &World, vp: &VisiblePoint, r: f32, u: [f32; 2], stats: &mut TraversalStats) -> bool {
-    let f = crate::math::Frame::new(vp.n);
-    let q = crate::math::concentric_disc(u);
-    let h = 0.25 * r;
-    let o = vp.p + (f.s * q[0] + f.t * q[1]) * r + vp.n * h;
-    // Off the axes: probes along axis-aligned normals would get no BVH culling.
-    let ray = crate::geometry::Ray::new(o, crate::geometry::off_axis(-vp.n));
-    match world.accel.intersect(&ray, 2.0 * h, stats) {
-        Some(hit) => {
-            let t = &world.scene.triangles[hit.tri as usize];
-            let ng = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
-            ng.dot(vp.n).abs() >= NORMAL_COS
-        }
-        None => false,
+/// [`gather`] with the flux divided by the share of the visible point's ball that
+/// holds surface able to catch the photons the gather counts (Hey & Purgathofer's
+/// boundary-bias correction, the probe of the precomputed estimate,
+/// [`estimate::coverage_sums`]): near edges and corners part of the disc holds no
+/// surface and no photons, which otherwise darkens them. The share is measured per
+/// visible point, over the whole ball the gather searches (a slab ±r), with `probes`
+/// rays of the golden-angle spiral (rotation from `key`), each counting the first
+/// surface inside the ball that faces like the visible point (past mirrors, glass and
+/// surfaces outside the ball) with 1/cos (true area per projected area), so a crease
+/// or a curve is measured, not read as a missing share. A ball within the visible
+/// point's own triangle (farther than r from every edge) is covered: no probe. The
+/// share is kept in [1/probes, 2] (a surface whose photons were found though no probe
+/// met it covers at most about one probe's share).
+pub fn gather_covered(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32, probes: u32, key: u64) -> (u64, DVec3) {
+    let (m, phi) = gather(world, grid, vp, r);
+    if probes == 0 || m == 0 || disc_inside_triangle(world, vp, r) {
+        return (m, phi);
     }
+    let rot = crate::math::u32_to_unit((key >> 32) as u32) * std::f32::consts::TAU;
+    let mut st = TraversalStats::default();
+    let (got, flat) = estimate::coverage_sums(world, vp.p, vp.n, r * r, r, NORMAL_COS, estimate::Filter::Box, probes, rot, &mut st);
+    let share = if flat > 0.0 { (got / flat).clamp(1.0 / probes as f32, 2.0) } else { 1.0 };
+    (m, phi / share as f64)
+}
+
+/// True when the disc of radius `r` about the visible point lies within its own
+/// triangle (every edge farther than r).
+fn disc_inside_triangle(world: &World, vp: &VisiblePoint, r: f32) -> bool {
+    let t = &world.scene.triangles[vp.tri as usize];
+    (0..3).all(|k| {
+        let (a, b) = (t[k], t[(k + 1) % 3]);
+        let e = b - a;
+        let len2 = e.length_squared();
+        // Distance from p to the edge's line, in the triangle's plane.
+        len2 > 0.0 && (vp.p - a).cross(e).length_squared() >= r * r * len2
+    })
 }
 
 /// Photons within `r` of the visible point that arrived on its side: their count and
@@ -624,8 +620,22 @@ pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u
     let ns = if cos_o >= 0.0 { vp.sp.ns() } else { -vp.sp.ns() };
     let lit = cos_o != 0.0 && vp.wo.dot(vp.sp.ng) != 0.0;
     let (mut m, mut diffuse, mut lobe) = (0u64, DVec3::ZERO, DVec3::ZERO);
-    grid.for_each_within(vp.p, r, |ph| {
+    // Photons beyond a surface close to the visible point's tangent plane (the lit top
+    // of a thin ceiling over a panel's upper side) are not its own: the distances to
+    // the nearest surfaces in front and behind, each measured once, when a photon off
+    // the plane asks ([`estimate::keep_this_side`]).
+    let tiny = estimate::off_plane_tolerance(vp.p);
+    let (mut front, mut back) = (None, None);
+    let mut stats = TraversalStats::default();
+    grid.for_each_within(vp.p, r, |pos, ph| {
         if ph.normal.dot(vp.n) < NORMAL_COS || ph.dir.dot(vp.n) <= 0.0 {
+            return;
+        }
+        let h = (pos - vp.p).dot(vp.n);
+        if h > tiny && h > 0.5 * *front.get_or_insert_with(|| estimate::free_distance(world, vp.p, vp.n, vp.n, 2.0 * r, &mut stats)) {
+            return;
+        }
+        if h < -tiny && -h > 0.5 * *back.get_or_insert_with(|| estimate::free_distance(world, vp.p, vp.n, -vp.n, 2.0 * r, &mut stats)) {
             return;
         }
         m += 1;

@@ -265,10 +265,11 @@ impl PhotonGrid {
         self.shade.is_empty()
     }
 
-    /// Calls `f` with every photon within `r` of `p` (distance² ≤ r², computed as
-    /// `(pos − p).length_squared()`), each once, cell by cell in photon order.
+    /// Calls `f` with the position and the shading data of every photon within `r`
+    /// of `p` (distance² ≤ r², computed as `(pos − p).length_squared()`), each once,
+    /// cell by cell in photon order.
     #[inline]
-    pub fn for_each_within(&self, p: Vec3, r: f32, mut f: impl FnMut(&PhotonShade)) {
+    pub fn for_each_within(&self, p: Vec3, r: f32, mut f: impl FnMut(Vec3, &PhotonShade)) {
         if self.shade.is_empty() {
             return;
         }
@@ -308,7 +309,8 @@ impl PhotonGrid {
                     mask &= (1 << (end - i)) - 1;
                 }
                 while mask != 0 {
-                    f(&self.shade[i + mask.trailing_zeros() as usize]);
+                    let j = i + mask.trailing_zeros() as usize;
+                    f(Vec3::new(self.x[j], self.y[j], self.z[j]), &self.shade[j]);
                     mask &= mask - 1;
                 }
                 i += BLOCK;
@@ -354,7 +356,7 @@ mod tests {
         let photons = random_photons(5000);
         let r = 0.3f32;
         let mut grid = PhotonGrid::default();
-        grid.for_each_within(Vec3::ZERO, r, |_| panic!("an empty grid has no photons"));
+        grid.for_each_within(Vec3::ZERO, r, |_, _| panic!("an empty grid has no photons"));
         grid.build(&chunked(&photons, &[700, 0, 33, 1024]), 2.0 * r);
         assert_eq!(grid.len(), photons.len());
         let mut u = 0.1f32;
@@ -363,7 +365,7 @@ mod tests {
             let p = Vec3::new(u * 4.0 - 2.0, (u * 13.7).fract() * 4.0 - 2.0, (u * 5.3).fract() * 0.5);
             let rq = r * (0.2 + 0.8 * (q % 5) as f32 / 4.0);
             let mut seen = vec![0u32; photons.len()];
-            grid.for_each_within(p, rq, |ph| seen[ph.power.x as usize] += 1);
+            grid.for_each_within(p, rq, |_, ph| seen[ph.power.x as usize] += 1);
             for (i, ph) in photons.iter().enumerate() {
                 let within = (ph.pos - p).length_squared() <= rq * rq;
                 assert_eq!(seen[i], within as u32, "photon {i}: visited {} times, within {within}", seen[i]);
@@ -397,6 +399,6 @@ mod tests {
         let mut grid = PhotonGrid::default();
         grid.build(&empty, 1.0);
         assert!(grid.is_empty());
-        grid.for_each_within(Vec3::ZERO, 1.0, |_| panic!("no photons"));
+        grid.for_each_within(Vec3::ZERO, 1.0, |_, _| panic!("no photons"));
     }
 }

@@ -141,24 +141,9 @@ fn area_probes_remove_the_darkening_at_edges() {
     assert!(without < 0.85, "rim without area probes: {without}");
 }
 
-/// The area probe as first written: straight along −n (axis-aligned on the walls).
-fn area_probe_along_minus_n(world: &World, vp: &VisiblePoint, r: f32, u: [f32; 2], stats: &mut TraversalStats) -> bool {
-    let f = crate::math::Frame::new(vp.n);
-    let q = crate::math::concentric_disc(u);
-    let h = 0.25 * r;
-    let o = vp.p + (f.s * q[0] + f.t * q[1]) * r + vp.n * h;
-    match world.accel.intersect(&crate::geometry::Ray::new(o, -vp.n), 2.0 * h, stats) {
-        Some(hit) => {
-            let t = &world.scene.triangles[hit.tri as usize];
-            (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero().dot(vp.n).abs() >= NORMAL_COS
-        }
-        None => false,
-    }
-}
-
 /// Probes from the walls, floor and ceiling of `cornell-glass` (axis-aligned normals
 /// but for the red wall), near the spheres and the edges too: the nudged direction
-/// gives every probe the answer of the exact −n one on every BVH, with a fraction of
+/// gives every probe ([`crate::photon::estimate::probe_surface`]) the answer of the exact −n one on every BVH, with a fraction of
 /// the node tests on the wide ones (the binary BVH culls axis-parallel rays already).
 #[test]
 fn area_probes_along_axes_agree_with_minus_n_and_cull() {
@@ -179,12 +164,16 @@ fn area_probes_along_axes_agree_with_minus_n_and_cull() {
             let p = t[0] * (1.0 - b[0] - b[1]) + t[1] * b[0] + t[2] * b[1];
             let ng = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
             let n = if ng.dot(center - p) >= 0.0 { ng } else { -ng };
-            let vp = VisiblePoint { p, n, wo: n, sp: ShadingPoint::new(ng, ng), tri, beta: Color::ONE };
             // Radii of the first passes (0.06 of the scene radius, ~24) down to tiny.
             let r = 40.0 * u(3) * u(3) + 1e-3;
-            let q = [u(4), u(5)];
-            let want = area_probe_along_minus_n(&world, &vp, r, q, &mut old);
-            assert_eq!(area_probe(&world, &vp, r, q, &mut new), want, "{accel}: probe {i} at {p} (n {n}, r {r})");
+            let (f, q) = (crate::math::Frame::new(n), crate::math::concentric_disc([u(4), u(5)]));
+            // A probe of `sppm`'s ball: from r above a point of the disc, over 2r.
+            let o = p + (f.s * q[0] + f.t * q[1]) * r + n * r;
+            let probe = |down: Vec3, st: &mut TraversalStats| {
+                crate::photon::estimate::probe_surface(&world, o, down, 2.0 * r, p, r * r, n, NORMAL_COS, st).is_some()
+            };
+            let want = probe(-n, &mut old);
+            assert_eq!(probe(crate::geometry::off_axis(-n), &mut new), want, "{accel}: probe {i} at {p} (n {n}, r {r})");
             hits += want as u32;
             n_probes += 1;
         }

@@ -197,17 +197,92 @@ pub fn radiance<M: PhotonSearch + ?Sized>(
     prm: &EstimateParams,
     heap: &mut KnnHeap,
 ) -> Color {
+    radiance_in(None, map, it, wo, bsdf, prm, heap)
+}
+
+/// The scene an estimate can cast rays into to keep only the photons on the query's
+/// own side of nearby surfaces ([`keep_this_side`]), and the counters of those rays.
+pub type Surroundings<'a, 'b> = Option<(&'a World, &'b mut TraversalStats)>;
+
+/// [`radiance`] that, given the scene, drops the photons lying beyond a surface close
+/// to the query's tangent plane ([`keep_this_side`]).
+pub fn radiance_in<M: PhotonSearch + ?Sized>(
+    world: Surroundings,
+    map: &M,
+    it: &Interaction,
+    wo: Vec3,
+    bsdf: &Bsdf,
+    prm: &EstimateParams,
+    heap: &mut KnnHeap,
+) -> Color {
     match bsdf {
         // The common case, without a BSDF evaluation per photon: albedo/π times the
         // summed power of the photons the surface reflects towards `wo` (which needs
         // only the signs of their directions, so no normalisation either).
         Bsdf::Lambertian(m) => {
             let test = LambertianReflects::towards(&it.sp, wo);
-            radiance_sum(map, it, wo, prm, heap, |m, i| if test.from(m.direction_side(i)) { m.power(i) } else { Color::ZERO })
+            radiance_sum(world, map, it, wo, prm, heap, |m, i| if test.from(m.direction_side(i)) { m.power(i) } else { Color::ZERO })
                 * (m.albedo * std::f32::consts::FRAC_1_PI)
         }
-        _ => radiance_with(map, it, wo, prm, heap, |wi| bsdf.eval(&it.sp, wo, wi)),
+        _ => radiance_sum(world, map, it, wo, prm, heap, |m, i| bsdf.eval(&it.sp, wo, m.direction(i)) * m.power(i)),
     }
+}
+
+/// Drops from a search's results the photons that lie beyond a surface close to the
+/// query's tangent plane: a zero-thickness ceiling 1 cm above a panel faces the same
+/// way as the panel's upper side, so the photons on its lit top pass the normal test
+/// and, for any disc thicker than 1 cm, the plane test, and light the dark gap. When
+/// a result lies off the plane by more than rounding (height h along `n`), one ray
+/// from `p` along n (or −n for photons behind, starting past the query's own surface)
+/// looks for a surface within 2|h|; photons farther than half its distance t (h >
+/// t/2) are nearer that surface than the query's and are dropped. A curved or
+/// creased surface's own photons lie off the plane too, but no other surface is that
+/// close there, and the kept photons are still every accepted one within the search
+/// radius, so the estimate stays a density over the same region.
+pub fn keep_this_side<M: PhotonSearch + ?Sized>(world: &World, map: &M, p: Vec3, n: Vec3, heap: &mut KnnHeap, stats: &mut TraversalStats) {
+    let tiny = off_plane_tolerance(p);
+    let (mut hi, mut lo) = (0.0f32, 0.0f32);
+    for &(_, i) in &heap.items {
+        let h = (map.photon_position(i as usize) - p).dot(n);
+        (hi, lo) = (hi.max(h), lo.min(h));
+    }
+    let front = if hi > tiny { free_distance(world, p, n, n, 2.0 * hi, stats) } else { f32::INFINITY };
+    let back = if lo < -tiny { free_distance(world, p, n, -n, -2.0 * lo, stats) } else { f32::INFINITY };
+    if 0.5 * front >= hi && 0.5 * back >= -lo {
+        return;
+    }
+    heap.items.retain(|&(_, i)| {
+        let h = (map.photon_position(i as usize) - p).dot(n);
+        h <= 0.5 * front && h >= -0.5 * back
+    });
+}
+
+/// Heights off a query's tangent plane below which a photon or point counts as lying
+/// on it (rounding of coordinates of magnitude `p`).
+#[inline]
+pub fn off_plane_tolerance(p: Vec3) -> f32 {
+    1e-4 * (1.0 + p.abs().max_element())
+}
+
+/// Distance from the surface point `p` (facing geometric normal `n`) along `dir`
+/// (±n) to the first surface within `reach` (∞ when none); a ray along −n starts
+/// past the point's own surface.
+pub fn free_distance(world: &World, p: Vec3, n: Vec3, dir: Vec3, reach: f32, stats: &mut TraversalStats) -> f32 {
+    let o = crate::geometry::offset_origin(p, n, dir);
+    let ray = Ray::new(o, crate::geometry::off_axis(dir));
+    world.accel.intersect(&ray, reach, stats).map_or(f32::INFINITY, |h| h.t + (o - p).dot(dir).abs())
+}
+
+/// True when a point at `q` (a precomputed-irradiance point found for a query at `p`
+/// with facing normal `n`) lies on the query's side of every nearby surface: the
+/// test of [`keep_this_side`] for one point.
+pub fn on_this_side(world: &World, p: Vec3, n: Vec3, q: Vec3, stats: &mut TraversalStats) -> bool {
+    let h = (q - p).dot(n);
+    if h.abs() <= off_plane_tolerance(p) {
+        return true;
+    }
+    let dir = if h > 0.0 { n } else { -n };
+    0.5 * free_distance(world, p, n, dir, 2.0 * h.abs(), stats) >= h.abs()
 }
 
 /// Radiance estimate with an arbitrary reflectance `f(wi)` per photon (e.g. only the
@@ -215,6 +290,7 @@ pub fn radiance<M: PhotonSearch + ?Sized>(
 /// photons that arrived on the side the query looks from count: their stored normal
 /// (the geometric normal on their arrival side) must agree with the one facing `wo`.
 pub fn radiance_with<M: PhotonSearch + ?Sized>(
+    world: Surroundings,
     map: &M,
     it: &Interaction,
     wo: Vec3,
@@ -222,13 +298,14 @@ pub fn radiance_with<M: PhotonSearch + ?Sized>(
     heap: &mut KnnHeap,
     f: impl Fn(Vec3) -> Color,
 ) -> Color {
-    radiance_sum(map, it, wo, prm, heap, |m, i| f(m.direction(i)) * m.power(i))
+    radiance_sum(world, map, it, wo, prm, heap, |m, i| f(m.direction(i)) * m.power(i))
 }
 
 /// The estimate Σ w·`term(photon)` / (norm·π r²) over the photons gathered at `it`
 /// (facing `wo`).
 #[inline]
 fn radiance_sum<M: PhotonSearch + ?Sized>(
+    world: Surroundings,
     map: &M,
     it: &Interaction,
     wo: Vec3,
@@ -241,6 +318,9 @@ fn radiance_sum<M: PhotonSearch + ?Sized>(
     }
     let n = facing_normal(it, wo);
     let r2 = map.gather(it.p, n, prm, heap);
+    if let Some((world, stats)) = world {
+        keep_this_side(world, map, it.p, n, heap, stats);
+    }
     if heap.items.is_empty() || r2 <= 0.0 {
         return Color::ZERO;
     }
@@ -254,15 +334,25 @@ fn radiance_sum<M: PhotonSearch + ?Sized>(
 /// Irradiance at a point with normal `n` (photons arriving on `n`'s side), as used by
 /// precomputed irradiance: E = Σ Φ w / (norm·π r²).
 pub fn irradiance<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> Color {
-    irradiance_r2(map, p, n, prm, heap).0
+    irradiance_r2(None, map, p, n, prm, heap).0
 }
 
 /// [`irradiance`] and the squared radius it used (0 without photons).
-fn irradiance_r2<M: PhotonSearch + ?Sized>(map: &M, p: Vec3, n: Vec3, prm: &EstimateParams, heap: &mut KnnHeap) -> (Color, f32) {
+fn irradiance_r2<M: PhotonSearch + ?Sized>(
+    world: Surroundings,
+    map: &M,
+    p: Vec3,
+    n: Vec3,
+    prm: &EstimateParams,
+    heap: &mut KnnHeap,
+) -> (Color, f32) {
     if map.is_empty() {
         return (Color::ZERO, 0.0);
     }
     let r2 = map.gather(p, n, prm, heap);
+    if let Some((world, stats)) = world {
+        keep_this_side(world, map, p, n, heap, stats);
+    }
     if heap.items.is_empty() || r2 <= 0.0 {
         return (Color::ZERO, 0.0);
     }
@@ -293,44 +383,86 @@ pub fn coverage(world: &World, p: Vec3, n: Vec3, r2: f32, prm: &EstimateParams, 
     if m == 0 || r2 <= 0.0 {
         return 1.0;
     }
-    let r = r2.sqrt();
-    let thick = (prm.disc * prm.max_radius).max(1e-4 * r);
-    let frame = Frame::new(n);
-    let down = crate::geometry::off_axis(-n);
+    let thick = (prm.disc * prm.max_radius).max(1e-4 * r2.sqrt());
     let rot = u32_to_unit((seed >> 32) as u32) * std::f32::consts::TAU;
+    let (got, flat) = coverage_sums(world, p, n, r2, thick, prm.normal_cos, prm.filter, m, rot, stats);
+    if flat <= 0.0 { 1.0 } else { (got / flat).clamp(0.05, 2.0) }
+}
+
+/// The probe of [`coverage`] (also `sppm`'s, over its whole ball): `m` points of the
+/// golden-angle spiral over the disc of radius √`r2` about `p` in the plane normal to
+/// `n`, rotated by `rot`, each probing the slab ±`thick` with [`probe_surface`].
+/// Returns Σ w·(1/cos) over the probes that found surface and Σ w over all (w the
+/// kernel weight at the probe's distance).
+#[allow(clippy::too_many_arguments)]
+pub fn coverage_sums(
+    world: &World,
+    p: Vec3,
+    n: Vec3,
+    r2: f32,
+    thick: f32,
+    normal_cos: f32,
+    filter: Filter,
+    m: u32,
+    rot: f32,
+    stats: &mut TraversalStats,
+) -> (f32, f32) {
+    let r = r2.sqrt();
+    let frame = Frame::new(n);
+    // Off the axes: probes along axis-aligned normals would get no BVH culling.
+    let down = crate::geometry::off_axis(-n);
     let (mut flat, mut got) = (0.0f32, 0.0f32);
     for j in 0..m {
         let s2 = (j as f32 + 0.5) / m as f32;
         let phi = rot + j as f32 * GOLDEN_ANGLE;
-        flat += prm.filter.weight(s2);
+        flat += filter.weight(s2);
         let x = p + (frame.s * phi.cos() + frame.t * phi.sin()) * (r * s2.sqrt());
-        let mut o = x + n * thick;
-        let mut left = 2.0 * thick;
-        for _ in 0..4 {
-            // Off the axes: probes along axis-aligned normals would get no BVH culling.
-            let ray = Ray::new(o, down);
-            let Some(hit) = world.accel.intersect(&ray, left, stats) else { break };
-            let it = world.interaction(&ray, &hit);
-            let cos = it.sp.ng.dot(n).abs();
-            // Mirrors and glass hold no photons, and a surface outside the sphere (the
-            // far side of an object standing on the surface) hides none of the area
-            // inside it: look past both.
-            if cos >= prm.normal_cos && !world.material(&it).bsdf.is_delta() {
-                let d2 = (it.p - p).length_squared();
-                if d2 < r2 {
-                    got += prm.filter.weight(d2 / r2) / cos;
-                    break;
-                }
-            }
-            let step = hit.t + 1e-4 * r;
-            o -= n * step;
-            left -= step;
-            if left <= 0.0 {
-                break;
-            }
+        if let Some((d2, cos)) = probe_surface(world, x + n * thick, down, 2.0 * thick, p, r2, n, normal_cos, stats) {
+            got += filter.weight(d2 / r2) / cos;
         }
     }
-    if flat <= 0.0 { 1.0 } else { (got / flat).clamp(0.05, 2.0) }
+    (got, flat)
+}
+
+/// One probe ray from `o` along `down` (≈ −`n`) over `len`: the first non-specular
+/// surface met whose normal passes the photon filter's test (|n_h·n| ≥ `normal_cos`)
+/// and that lies inside the ball of radius² `r2` about `p`, as (its distance² to `p`,
+/// |n_h·n|). Mirrors and glass hold no photons, and a surface outside the ball (the
+/// far side of an object standing on the surface) hides none of the area inside it:
+/// the probe looks past both (up to four surfaces).
+#[allow(clippy::too_many_arguments)]
+pub fn probe_surface(
+    world: &World,
+    mut o: Vec3,
+    down: Vec3,
+    len: f32,
+    p: Vec3,
+    r2: f32,
+    n: Vec3,
+    normal_cos: f32,
+    stats: &mut TraversalStats,
+) -> Option<(f32, f32)> {
+    let mut left = len;
+    let nudge = 1e-4 * r2.sqrt();
+    for _ in 0..4 {
+        let ray = Ray::new(o, down);
+        let hit = world.accel.intersect(&ray, left, stats)?;
+        let it = world.interaction(&ray, &hit);
+        let cos = it.sp.ng.dot(n).abs();
+        if cos >= normal_cos && !world.material(&it).bsdf.is_delta() {
+            let d2 = (it.p - p).length_squared();
+            if d2 < r2 {
+                return Some((d2, cos));
+            }
+        }
+        let step = hit.t + nudge;
+        o -= n * step;
+        left -= step;
+        if left <= 0.0 {
+            break;
+        }
+    }
+    None
 }
 
 /// Irradiance estimate whose area is the surface inside the region ([`coverage`]),
@@ -344,7 +476,7 @@ pub fn irradiance_covered<M: PhotonSearch + ?Sized>(
     heap: &mut KnnHeap,
     stats: &mut TraversalStats,
 ) -> Color {
-    let (e, r2) = irradiance_r2(map, p, n, prm, heap);
+    let (e, r2) = irradiance_r2(Some((world, &mut *stats)), map, p, n, prm, heap);
     if prm.area_probes == 0 || e.max_element() <= 0.0 || fills_disc(map, heap, p, n, r2) {
         return e;
     }

@@ -70,7 +70,13 @@ impl PrecomputedIrradiance {
     /// lamp over a roof) lends its irradiance through the wall.
     #[inline]
     pub fn lookup(&self, p: Vec3, n: Vec3, radius: f32, thickness: f32) -> Option<Color> {
-        self.grid.nearest_disc(p, n, thickness, 0.7, radius * radius).map(|(i, _)| *self.grid.item(i))
+        self.lookup_point(p, n, radius, thickness).map(|(e, _)| e)
+    }
+
+    /// [`PrecomputedIrradiance::lookup`] with the position of the point found.
+    #[inline]
+    pub fn lookup_point(&self, p: Vec3, n: Vec3, radius: f32, thickness: f32) -> Option<(Color, Vec3)> {
+        self.grid.nearest_disc(p, n, thickness, 0.7, radius * radius).map(|(i, _)| (*self.grid.item(i), self.grid.position(i)))
     }
 }
 

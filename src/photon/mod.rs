@@ -263,7 +263,14 @@ pub fn trace_path_in<S: Sampler + ?Sized>(
         let wo = -ray.d;
         if !bsdf.is_delta() {
             let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
-            out.extend(std::iter::once(RawPhoton { kind: state.map(), pos: it.p, power, dir: wo, normal: n, tri: it.tri }));
+            // Photons land per unit geometric area; radiance transport with shading
+            // normals (`path`, direct light) weighs arriving light by |ω·n_s|. Stored
+            // scaled by |wo·n_s|/|wo·n_g|, every estimate reading them (photon maps,
+            // precomputed irradiance, `sppm`'s visible points) gets that measure: the
+            // factor of the photon's own point, which tends to the query's as the
+            // radius shrinks (shading normals are continuous across a mesh).
+            let stored = power * it.sp.shading_to_geometric(wo);
+            out.extend(std::iter::once(RawPhoton { kind: state.map(), pos: it.p, power: stored, dir: wo, normal: n, tri: it.tri }));
         }
         if depth >= max_depth {
             break;
@@ -274,7 +281,8 @@ pub fn trace_path_in<S: Sampler + ?Sized>(
         let u = sampler.next_2d();
         let u_rr = sampler.next_1d();
         let Some(bs) = bsdf.sample(&it.sp, wo, u_lobe, u, TransportMode::Importance) else { break };
-        power *= bs.weight;
+        // Shading normals make scattering non-symmetric: the adjoint correction.
+        power *= bs.weight * it.sp.importance_correction(wo, bs.wi);
         depth += 1;
         let rel = Color::new(ratio(power.x, initial.x), ratio(power.y, initial.y), ratio(power.z, initial.z));
         match roulette(rr, &RrContext { depth, throughput: rel, albedo: bsdf.albedo() }, u_rr) {

@@ -2,9 +2,12 @@
 //! `cornell-glass` (Jensen's box), `cornell-glossy` (glossy floor, sphere and box),
 //! `cornell-contact` (a cube on the floor and a sphere touching a corner),
 //! `leaky-box` (a closed box of zero-thickness walls lit only from outside),
-//! `furnace` (a closed emitting diffuse sphere, for energy checks) and
-//! `displaced-sphere` (≥ 1 M triangles, for acceleration benchmarks) and
-//! `door-ajar` (Veach's room lit through a door left ajar).
+//! `furnace` (a closed emitting diffuse sphere, for energy checks),
+//! `displaced-sphere` (≥ 1 M triangles, for acceleration benchmarks),
+//! `door-ajar` (Veach's room lit through a door left ajar),
+//! `smooth-sphere` / `faceted-sphere` (a coarse 10 × 5-facet sphere with and without
+//! vertex normals, for shading normals and creases in photon estimates) and
+//! `lamp-panel` (a thin panel hanging 1 cm under a ceiling lit from above).
 
 use super::{Face, MeshData, Placement, Scene};
 use crate::camera::Camera;
@@ -24,6 +27,9 @@ pub const BUILTINS: &[&str] = &[
     "furnace",
     "displaced-sphere",
     "door-ajar",
+    "smooth-sphere",
+    "faceted-sphere",
+    "lamp-panel",
 ];
 
 /// Builds a built-in scene by name.
@@ -38,6 +44,9 @@ pub fn builtin(name: &str) -> Result<Scene> {
         "furnace" => Ok(furnace(0.5, 1.0, 24)),
         "displaced-sphere" => Ok(displaced_sphere(710)),
         "door-ajar" => Ok(door_ajar()),
+        "smooth-sphere" => Ok(coarse_sphere_box(true)),
+        "faceted-sphere" => Ok(coarse_sphere_box(false)),
+        "lamp-panel" => Ok(lamp_panel()),
         _ => bail!("unknown built-in scene `{name}` (known: {})", BUILTINS.join(", ")),
     }
 }
@@ -285,8 +294,12 @@ fn smooth_sphere(n: u32) -> MeshData {
 /// collapse and are dropped on loading), winding facing outward when `outward`,
 /// otherwise inward. `radius(θ, φ)` displaces it.
 pub fn uv_sphere(n: u32, outward: bool, radius: impl Fn(f32, f32) -> f32) -> MeshData {
+    uv_sphere_grid(n, n, outward, radius)
+}
+
+/// [`uv_sphere`] with `nu` segments around and `nv` rings from pole to pole.
+pub fn uv_sphere_grid(nu: u32, nv: u32, outward: bool, radius: impl Fn(f32, f32) -> f32) -> MeshData {
     let mut m = MeshData::default();
-    let (nu, nv) = (n, n);
     for j in 0..=nv {
         for i in 0..nu {
             let th = std::f32::consts::PI * j as f32 / nv as f32;
@@ -397,6 +410,79 @@ pub fn door_ajar() -> Scene {
     add_quads(&mut m, &[[[2.6, 0.7, 1.2], [2.6, 0.7, 2.4], [3.4, 0.7, 2.4], [3.4, 0.7, 1.2]]], 4);
     let cam = Camera::new(Vec3::new(0.4, 1.5, 3.7), Vec3::new(4.0, 0.5, 1.6), Vec3::Y, 62.0, 160, 120).expect("valid camera");
     let mut s = Scene::new("door-ajar", cam);
+/// A coarse diffuse sphere in a closed box (shading normals and creases in photon
+/// estimates): a 10 × 5-facet UV sphere (10 segments, 5 rings: 36° creases) of
+/// radius 0.5 and albedo 0.7, with radial vertex normals (`smooth-sphere`, smooth
+/// shading) or without (`faceted-sphere`), in a closed 2 × 2 × 2 box (white floor,
+/// ceiling and back wall, red left and green right wall, one-sided walls facing in)
+/// lit by a 0.6 × 0.6 area light under the ceiling. With vertex normals `path`
+/// shades the facets with the interpolated normal while photons land per geometric
+/// area, so a photon estimator agrees with `path` only when it corrects for the
+/// difference (Veach 1997, §5.3).
+pub fn coarse_sphere_box(vertex_normals: bool) -> Scene {
+    let mut m = MeshData {
+        materials: vec![
+            Material::diffuse("white", Color::splat(0.7)),
+            Material::diffuse("red", Color::new(0.63, 0.1, 0.08)),
+            Material::diffuse("green", Color::new(0.14, 0.45, 0.1)),
+            Material { emission: Color::splat(12.0), ..Material::diffuse("light", Color::splat(0.7)) },
+        ],
+        ..Default::default()
+    };
+    let (white, red, green, light) = (0, 1, 2, 3);
+    // The unit cube's faces wound inward (reversed), scaled to x, z ∈ [-1, 1], y ∈ [0, 2].
+    let inward = unit_cube_quads().map(|q| [q[3], q[2], q[1], q[0]].map(|p| [p[0], p[1] + 1.0, p[2]]));
+    // Faces: +z (front), −z (back), +x (right), −x (left), +y (ceiling), −y (floor).
+    add_quads(&mut m, &[inward[0], inward[1], inward[4], inward[5]], white);
+    add_quads(&mut m, &[inward[3]], red);
+    add_quads(&mut m, &[inward[2]], green);
+    add_quads(&mut m, &[[[-0.3, 1.99, -0.3], [0.3, 1.99, -0.3], [0.3, 1.99, 0.3], [-0.3, 1.99, 0.3]]], light);
+    let cam = Camera::new(Vec3::new(0.0, 1.0, 0.97), Vec3::new(0.0, 0.75, -0.3), Vec3::Y, 66.0, 128, 128).expect("valid camera");
+    let name = if vertex_normals { "smooth-sphere" } else { "faceted-sphere" };
+    let mut s = Scene::new(name, cam);
+    s.add_mesh(&m, &Placement::default(), None).expect("box geometry is valid");
+    let mut sphere = uv_sphere_grid(10, 5, true, |_, _| 1.0);
+    if vertex_normals {
+        sphere.normals = sphere.positions.iter().map(|p| p.normalize()).collect();
+        for f in &mut sphere.faces {
+            f.n = Some(f.v);
+        }
+    }
+    sphere.materials.push(Material::diffuse("sphere", Color::splat(0.7)));
+    let place = Placement { scale: Vec3::splat(0.5), rotate_y_deg: 0.0, translate: Vec3::new(0.0, 0.7, -0.3) };
+    s.add_mesh(&sphere, &place, None).expect("sphere geometry is valid");
+    s
+}
+
+/// A thin panel under a lit ceiling: a closed room (4 × 2.5 × 4 m) of zero-thickness
+/// walls, lit only from outside by an area light above its roof (under a canopy that
+/// sends light back down), with a zero-thickness panel (1.2 × 1.2 m, both sides
+/// reflect) hanging 1 cm under the ceiling, seen from below. Nothing reaches the
+/// inside, so the correct image is black (`path` ~1e-8): an estimate that borrows
+/// the roof's photons or precomputed irradiance across the 1 cm gap (the panel's
+/// upper side faces the same way as the roof, within any disc's thickness) lights
+/// the room.
+pub fn lamp_panel() -> Scene {
+    let mut m = MeshData {
+        materials: vec![
+            Material::diffuse("wall", Color::splat(0.7)),
+            Material { emission: Color::splat(20.0), ..Material::diffuse("lamp", Color::splat(0.5)) },
+            Material::diffuse("canopy", Color::splat(0.8)),
+            Material::diffuse("panel", Color::splat(0.8)),
+        ],
+        ..Default::default()
+    };
+    let (wall, lamp, canopy, panel) = (0, 1, 2, 3);
+    // The room: the unit cube's faces scaled to x, z ∈ [0, 4], y ∈ [0, 2.5].
+    let room = unit_cube_quads().map(|q| q.map(|p| [2.0 * (p[0] + 1.0), 1.25 * (p[1] + 1.0), 2.0 * (p[2] + 1.0)]));
+    add_quads(&mut m, &room, wall);
+    // Lamp facing down over the roof, and a canopy facing down above it.
+    add_quads(&mut m, &[[[1.2, 3.0, 1.2], [2.8, 3.0, 1.2], [2.8, 3.0, 2.8], [1.2, 3.0, 2.8]]], lamp);
+    add_quads(&mut m, &[[[-2.0, 3.6, -2.0], [6.0, 3.6, -2.0], [6.0, 3.6, 6.0], [-2.0, 3.6, 6.0]]], canopy);
+    // The panel, 1 cm under the ceiling (y = 2.5), facing down.
+    add_quads(&mut m, &[[[1.4, 2.49, 1.4], [2.6, 2.49, 1.4], [2.6, 2.49, 2.6], [1.4, 2.49, 2.6]]], panel);
+    let cam = Camera::new(Vec3::new(2.0, 0.9, 3.8), Vec3::new(2.0, 2.2, 2.0), Vec3::Y, 70.0, 128, 128).expect("valid camera");
+    let mut s = Scene::new("lamp-panel", cam);
     s.add_mesh(&m, &Placement::default(), None).expect("room geometry is valid");
     s
 }
@@ -438,6 +524,24 @@ mod tests {
         let s = door_ajar();
         let lamp: Vec<u32> = (0..s.triangles.len() as u32).filter(|&i| s.material(i).is_emitter()).collect();
         assert!(lamp.len() == 2 && lamp.iter().all(|&i| s.geometric_normal(i).x > 0.99));
+    }
+
+    #[test]
+    fn coarse_sphere_boxes_face_inward_and_differ_only_in_normals() {
+        let (smooth, faceted) = (coarse_sphere_box(true), coarse_sphere_box(false));
+        for s in [&smooth, &faceted] {
+            assert!(s.validate().is_ok());
+            // 6 walls + light = 14 triangles; 10 × 5 grid = 100, less 20 at the poles.
+            assert_eq!(s.triangles.len(), 14 + 80, "{}", s.name);
+            for i in 0..14u32 {
+                let t = &s.triangles[i as usize];
+                let c = (t[0] + t[1] + t[2]) / 3.0;
+                assert!(s.geometric_normal(i).dot(Vec3::new(0.0, 1.0, 0.0) - c) > 0.0, "{}: wall {i} faces out", s.name);
+            }
+        }
+        assert_eq!(smooth.triangles, faceted.triangles);
+        assert_ne!(smooth.normals.len(), faceted.normals.len());
+        assert_eq!(builtin("smooth-sphere").unwrap().name, "smooth-sphere");
     }
 
     #[test]

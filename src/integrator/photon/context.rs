@@ -145,32 +145,39 @@ impl PhotonContext {
     }
 
     /// Caustic radiance by direct visualisation of the caustic map.
-    pub fn caustic(&self, it: &Interaction, wo: Vec3, bsdf: &Bsdf) -> Color {
+    pub fn caustic(&self, world: &World, it: &Interaction, wo: Vec3, bsdf: &Bsdf, stats: &mut TraversalStats) -> Color {
         if self.maps.caustic.is_empty() {
             return Color::ZERO;
         }
-        with_heap(|h| estimate::radiance(&self.maps.caustic, it, wo, bsdf, &self.est_caustic, h))
+        with_heap(|h| estimate::radiance_in(Some((world, stats)), &self.maps.caustic, it, wo, bsdf, &self.est_caustic, h))
     }
 
     /// Radiance leaving a final-gather hit towards the gathering point. With
     /// precomputed irradiance: the nearest precomputed point (on the side the hit is
     /// seen from) times Kd/π for the diffuse part, plus a photon estimate with the
     /// glossy lobe alone when the surface has one. Without: a full photon estimate.
-    pub fn exitant_at_hit(&self, it: &Interaction, wo: Vec3, bsdf: &Bsdf) -> Color {
+    /// Photons and points beyond a surface close to the hit's tangent plane (the lit
+    /// top of a thin ceiling over a panel's upper side) are not used
+    /// ([`estimate::keep_this_side`]).
+    pub fn exitant_at_hit(&self, world: &World, it: &Interaction, wo: Vec3, bsdf: &Bsdf, stats: &mut TraversalStats) -> Color {
         if let Some(pre) = &self.precomputed {
             let n = facing_normal(it, wo);
             let thickness = self.est_global.disc * self.precomputed_radius;
-            if let Some(e) = pre.lookup(it.p, n, self.precomputed_radius, thickness) {
+            if let Some((e, q)) = pre.lookup_point(it.p, n, self.precomputed_radius, thickness)
+                && estimate::on_this_side(world, it.p, n, q, stats)
+            {
                 let mut l = bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e;
                 if bsdf.has_glossy() {
                     l += with_heap(|h| {
-                        estimate::radiance_with(&self.global, it, wo, &self.est_global, h, |wi| bsdf.eval_glossy(&it.sp, wo, wi))
+                        estimate::radiance_with(Some((world, &mut *stats)), &self.global, it, wo, &self.est_global, h, |wi| {
+                            bsdf.eval_glossy(&it.sp, wo, wi)
+                        })
                     });
                 }
                 return l;
             }
         }
-        with_heap(|h| estimate::radiance(&self.global, it, wo, bsdf, &self.est_global, h))
+        with_heap(|h| estimate::radiance_in(Some((world, stats)), &self.global, it, wo, bsdf, &self.est_global, h))
     }
 
     /// Follows a ray through mirrors and glass (one branch, chosen by weight) to the
@@ -238,7 +245,7 @@ impl PhotonContext {
         let l = if level + 1 < self.gather_counts.len() {
             self.shade(&GatherPoint { world, it: &sp.it, wo: sp.wo, bsdf: hb, key }, level + 1, stats, false)
         } else {
-            self.exitant_at_hit(&sp.it, sp.wo, hb)
+            self.exitant_at_hit(world, &sp.it, sp.wo, hb, stats)
         };
         (l * sp.weight, sp.first_dist)
     }
@@ -304,7 +311,7 @@ impl PhotonContext {
     /// Full shading of a non-specular point at gather `level`: direct light, caustics
     /// and the indirect light of the next level (or `gather` at the first level).
     pub fn shade(&self, at: &GatherPoint, level: usize, stats: &mut TraversalStats, with_direct: bool) -> Color {
-        let mut l = self.caustic(at.it, at.wo, at.bsdf) + self.gathered_indirect(at, level, stats);
+        let mut l = self.caustic(at.world, at.it, at.wo, at.bsdf, stats) + self.gathered_indirect(at, level, stats);
         if with_direct || level > 0 {
             l += self.direct_light(at, stats);
         }

@@ -252,21 +252,25 @@ impl PhotonIntegrator {
             }
         }
         // The trees exist when the output asks for them (`map_trees`).
-        let est =
-            |map: &Option<_>| map.as_ref().map_or(Color::ZERO, |m| with_heap(|h| estimate::radiance(m, &it, wo, bsdf, &ctx.est_global, h)));
+        let est = |map: &Option<_>, stats: &mut TraversalStats| {
+            map.as_ref()
+                .map_or(Color::ZERO, |m| with_heap(|h| estimate::radiance_in(Some((world, stats)), m, &it, wo, bsdf, &ctx.est_global, h)))
+        };
         let at = GatherPoint { world, it: &it, wo, bsdf, key };
         match self.output {
             Output::All => {
                 l += ctx.direct_light(&at, stats);
-                l += ctx.caustic(&it, wo, bsdf);
+                l += ctx.caustic(world, &it, wo, bsdf, stats);
                 l += self.gather.indirect(ctx, &at, stats);
             }
             Output::Direct => l += ctx.direct_light(&at, stats),
-            Output::Caustic => l += ctx.caustic(&it, wo, bsdf),
+            Output::Caustic => l += ctx.caustic(world, &it, wo, bsdf, stats),
             Output::Indirect => l += self.gather.indirect(ctx, &at, stats),
-            Output::PhotonsDirect => l += est(&ctx.maps.direct),
-            Output::PhotonsIndirect => l += est(&ctx.maps.indirect),
-            Output::PhotonsCaustic => l += with_heap(|h| estimate::radiance(&ctx.maps.caustic, &it, wo, bsdf, &ctx.est_caustic, h)),
+            Output::PhotonsDirect => l += est(&ctx.maps.direct, stats),
+            Output::PhotonsIndirect => l += est(&ctx.maps.indirect, stats),
+            Output::PhotonsCaustic => {
+                l += with_heap(|h| estimate::radiance_in(Some((world, stats)), &ctx.maps.caustic, &it, wo, bsdf, &ctx.est_caustic, h))
+            }
         }
         l
     }

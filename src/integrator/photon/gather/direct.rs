@@ -16,8 +16,10 @@ impl Gather for DirectVisualisation {
     fn name(&self) -> &'static str {
         "direct"
     }
-    fn indirect(&self, ctx: &PhotonContext, at: &GatherPoint, _stats: &mut TraversalStats) -> Color {
+    fn indirect(&self, ctx: &PhotonContext, at: &GatherPoint, stats: &mut TraversalStats) -> Color {
         // The integrator builds the indirect map's tree for this gather (`map_trees`).
-        ctx.maps.indirect.as_ref().map_or(Color::ZERO, |m| with_heap(|h| estimate::radiance(m, at.it, at.wo, at.bsdf, &ctx.est_global, h)))
+        ctx.maps.indirect.as_ref().map_or(Color::ZERO, |m| {
+            with_heap(|h| estimate::radiance_in(Some((at.world, stats)), m, at.it, at.wo, at.bsdf, &ctx.est_global, h))
+        })
     }
 }
