@@ -147,7 +147,7 @@ impl PartHeader {
                 pixels
             ));
         }
-        if !(self.seconds >= 0.0) {
+        if self.seconds.is_nan() || self.seconds < 0.0 {
             return Err(format!("seconds {} (must be at least 0)", self.seconds));
         }
         let want = usize::try_from(pixels).ok().and_then(|p| p.checked_mul(48));

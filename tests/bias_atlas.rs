@@ -76,7 +76,8 @@ fn the_atlas_runs_and_exposes_a_planted_bias() {
     let num = |v: &str| v.trim_end_matches(" %").replace('−', "-").parse::<f64>().unwrap_or(f64::NAN);
     for r in &rows {
         assert_eq!(r.len(), 6, "{r:?}");
-        if r[0] != "furnace" || !r[1].starts_with("planted") {
+        // Judged blocks come with a mean ratio (`leaky-box`'s reference is black inside).
+        if r[5] != "–" {
             assert!(num(r[2]) > 0.0, "no mean ratio: {r:?}");
         }
     }

@@ -136,17 +136,18 @@ pub fn robust_metrics(img: &Film, reference: &Film) -> Result<RobustMetrics> {
     })
 }
 
-/// Ratio of the image means (test / reference) over all pixels and channels; NaN for
-/// a black reference.
+/// Ratio of the image means (test / reference) over all pixels and channels; 0 for a
+/// black reference (records are JSON, which has no NaN).
 pub fn mean_ratio(img: &Film, reference: &Film) -> f64 {
     let sum = |f: &Film| f.pixels.iter().map(|p| p.as_dvec3().element_sum()).sum::<f64>();
     let r = sum(reference);
-    if r > 0.0 { sum(img) / r } else { f64::NAN }
+    if r > 0.0 { sum(img) / r } else { 0.0 }
 }
 
 /// The difference of the means of the [`BLOCK`]-px block at `at` (top-left pixel),
 /// over the pixels' RGB means, in standard errors: the sample variance of the
-/// per-pixel differences / pixel count. ±∞ when the pixels differ by a constant.
+/// per-pixel differences / pixel count. ±`f64::MAX` (shown as ±∞) when the pixels
+/// differ by a constant (records are JSON, which has no infinity).
 pub fn block_z(img: &Film, reference: &Film, at: [u32; 2]) -> f64 {
     let (mut sd, mut sd2, mut n) = (0.0f64, 0.0f64, 0.0f64);
     for y in at[1]..(at[1] + BLOCK).min(img.height) {
@@ -162,7 +163,13 @@ pub fn block_z(img: &Film, reference: &Film, at: [u32; 2]) -> f64 {
     }
     let var = ((sd2 - sd * sd / n) / (n - 1.0)).max(0.0);
     let mean = sd / n;
-    if mean == 0.0 { 0.0 } else { mean / (var / n).sqrt() }
+    if mean == 0.0 {
+        0.0
+    } else if var == 0.0 {
+        mean.signum() * f64::MAX
+    } else {
+        mean / (var / n).sqrt()
+    }
 }
 
 /// Errors of one component image (e.g. `indirect`) against the component reference.
@@ -353,7 +360,12 @@ mod tests {
         }
         let m = robust_metrics(&noisy, &r).unwrap();
         assert!(m.worst_block_z.abs() < 1e-3 && (m.mean_ratio - 1.0).abs() < 1e-6, "{m:?}");
-        assert!(mean_ratio(&flat(4, 4, 1.0), &flat(4, 4, 0.0)).is_nan());
+        assert_eq!(mean_ratio(&flat(4, 4, 1.0), &flat(4, 4, 0.0)), 0.0);
+        // A constant offset has no spread: the largest finite z, which a JSON record keeps.
+        let m = robust_metrics(&flat(16, 16, 0.6), &flat(16, 16, 0.5)).unwrap();
+        assert_eq!(m.worst_block_z, f64::MAX);
+        let back: RobustMetrics = serde_json::from_str(&serde_json::to_string(&m).unwrap()).unwrap();
+        assert_eq!(back, m);
     }
 
     #[test]

@@ -341,7 +341,7 @@ pub fn bias_table(stats: &[ConfigStats]) -> String {
         let label = c.label.strip_prefix(&format!("scene={scene} ")).unwrap_or(&c.label);
         let z = if r.worst_block == 0.0 {
             "–".to_string()
-        } else if r.worst_block_z.is_infinite() {
+        } else if r.worst_block_z.abs() >= f64::MAX {
             format!("{}∞", if r.worst_block_z < 0.0 { "−" } else { "+" })
         } else {
             format!("{:+.1}", r.worst_block_z)
