@@ -2,10 +2,10 @@
 //! the dielectric one with the transmitted cosine and relative indices, the
 //! conductor one with a complex index, and the hemispherical (diffuse) average.
 
-/// Unpolarised dielectric Fresnel for a direction with cosine `cos_i` (sign: side,
-/// > 0 outside) at an interface of relative index `eta` = η_inside / η_outside.
-/// Returns (reflectance, signed cosine of the transmitted direction (opposite side,
-/// 0 on total internal reflection), η_it, η_ti = 1/η_it) — Mitsuba's `fresnel`.
+/// Unpolarised dielectric Fresnel for a direction with cosine `cos_i` (positive
+/// outside, negative inside) at an interface of relative index `eta` = η_inside / η_outside.
+/// Returns the reflectance, the signed cosine of the transmitted direction (opposite
+/// side; 0 on total internal reflection), η_it and η_ti = 1/η_it, as Mitsuba's `fresnel`.
 pub fn fresnel_full(cos_i: f32, eta: f32) -> (f32, f32, f32, f32) {
     let outside = cos_i >= 0.0;
     let (eta_it, eta_ti) = if outside { (eta, 1.0 / eta) } else { (1.0 / eta, eta) };

@@ -121,7 +121,7 @@ impl Plastic {
         let (wi, w) = self.sample_base(sp, wo, u)?;
         let cos = wi.dot(sp.ns());
         let pdf = (1.0 - ps) * cos * FRAC_1_PI;
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         Some(BsdfSample { wi, f: w * FRAC_1_PI, pdf, weight: w / (1.0 - ps), delta: false })

@@ -48,7 +48,7 @@ impl RoughDielectric {
         let eta = if lo.z > 0.0 { self.eta() } else { 1.0 / self.eta() };
         let m = lo + li * if reflect { 1.0 } else { eta };
         let len = m.length();
-        if !(len > 0.0) {
+        if len.is_nan() || len <= 0.0 {
             return None;
         }
         let m = m / len * m.z.signum();
@@ -129,7 +129,7 @@ impl RoughDielectric {
         }
         let pdf = self.pdf_local(lo, li);
         let fv = self.eval_local(lo, li, mode);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         Some(BsdfSample { wi, f: fv, pdf, weight: fv * (li.z.abs() / pdf), delta: false })

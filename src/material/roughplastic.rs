@@ -178,7 +178,7 @@ impl RoughPlastic {
             return None;
         }
         let pdf = self.pdf_local(lo, li);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         let f = self.eval_local(lo, li);

@@ -730,7 +730,18 @@ mod tests {
         let g = override_material(&m, "x").unwrap();
         assert_eq!(g.bsdf, Bsdf::Glossy(Glossy { kd: Color::splat(0.5), ks: Color::ZERO, exponent: 1.0 }));
         assert!(toml::from_str::<OverrideToml>("type = \"glass\"\nshiny = 1").is_err());
-        assert!(toml::from_str::<OverrideToml>("type = \"plastic\"").is_err());
+        assert!(toml::from_str::<OverrideToml>("type = \"velvet\"").is_err());
+        // Mitsuba's BSDFs with Mitsuba's defaults; bad values name the key.
+        let m: OverrideToml = toml::from_str("type = \"roughconductor\"").unwrap();
+        let b = override_material(&m, "x").unwrap().bsdf;
+        assert!(matches!(b, Bsdf::RoughConductor(ref r) if r.alpha == 0.1 && r.distribution == MicrofacetType::Beckmann));
+        let m: OverrideToml = toml::from_str("type = \"roughplastic\"\ndistribution = \"ggx\"\nalpha = 0.3").unwrap();
+        assert!(matches!(override_material(&m, "x").unwrap().bsdf, Bsdf::RoughPlastic(ref r) if r.alpha == 0.3));
+        let m: OverrideToml = toml::from_str("type = \"roughplastic\"\ndistribution = \"phong\"").unwrap();
+        assert!(override_material(&m, "x").unwrap_err().to_string().contains("distribution"));
+        let m: OverrideToml = toml::from_str("type = \"roughconductor\"\nalpha = -1.0").unwrap();
+        assert!(override_material(&m, "x").unwrap_err().to_string().contains("alpha"));
+        assert!(toml::from_str::<OverrideToml>("type = \"plastic\"\nroughness = 1").is_err());
     }
 
     /// Parses `text` as a whole document in `dialect`, the description's paths under `d/`.
