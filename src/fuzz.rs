@@ -1,5 +1,6 @@
-//! `photonlab fuzz`: a mutation fuzzer for the input readers — scene TOML, OBJ, MTL
-//! and experiment manifests — on stable Rust (no nightly, no sanitizer runtime).
+//! `photonlab fuzz`: a mutation fuzzer for the input readers — scene TOML, OBJ, MTL,
+//! experiment manifests, Mitsuba XML scenes, PLY meshes and texture images (PNG,
+//! JPEG, EXR) — on stable Rust (no nightly, no sanitizer runtime).
 //!
 //! Seeds are real files (the built-in scenes exported through the scene contract,
 //! the shipped manifests, and any `--corpus` directory); each input is a seed
@@ -49,6 +50,46 @@ pub enum Target {
     Mtl,
     /// Experiment manifest (`Manifest::parse`).
     Manifest,
+    /// Mitsuba XML scene (parse and build, with the files it names).
+    Xml,
+    /// PLY mesh (`parse_ply`).
+    Ply,
+    /// Texture image (PNG, JPEG or EXR by its magic bytes; `Image::decode`).
+    Image,
+}
+
+/// A small XML seed using most of the supported elements.
+const XML_SEED: &str = r#"<scene version="3.0.0">
+<default name="r" value="0.5"/>
+<sensor type="perspective"><float name="fov" value="40"/><string name="fov_axis" value="smaller"/>
+<transform name="to_world"><lookat origin="0,0,4" target="0,0,0" up="0,1,0"/></transform>
+<sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+<film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/><rfilter type="box"/></film></sensor>
+<bsdf type="twosided" id="w"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"><transform name="to_uv"><scale value="4"/></transform></texture></bsdf></bsdf>
+<shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/><translate y="-1"/></transform><ref id="w"/></shape>
+<shape type="cube"><transform name="to_world"><scale value="$r"/><matrix value="1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1"/></transform><bsdf type="dielectric"><string name="int_ior" value="water"/></bsdf></shape>
+<shape type="disk"><boolean name="flip_normals" value="true"/><emitter type="area"><rgb name="radiance" value="1, 2, 3"/></emitter></shape>
+<emitter type="spot"><float name="cutoff_angle" value="30"/></emitter>
+<emitter type="point"><point name="position" x="0" y="1" z="0"/></emitter>
+<emitter type="directional"><vector name="direction" value="0 -1 0"/></emitter>
+<emitter type="constant"><rgb name="radiance" value="0.1"/></emitter>
+</scene>
+"#;
+
+/// A small ASCII PLY seed (a quad with normals and UVs).
+const PLY_SEED: &str = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+property float nx\nproperty float ny\nproperty float nz\nproperty float u\nproperty float v\n\
+element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+0 0 0 0 0 1 0 0\n1 0 0 0 0 1 1 0\n1 1 0 0 0 1 1 1\n0 1 0 0 0 1 0 1\n4 0 1 2 3\n";
+
+fn image_kind(input: &[u8]) -> &'static str {
+    if input.starts_with(b"\x89PNG") {
+        "png"
+    } else if input.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
+        "exr"
+    } else {
+        "jpg"
+    }
 }
 
 /// Counts of one fuzzing run.
@@ -190,6 +231,12 @@ fn run_one(target: Target, input: &[u8], scratch: &Path) -> Result<bool> {
         Target::Obj => parse_obj(&text, &scratch.join("fuzz.obj")).map(|_| ()),
         Target::Mtl => parse_mtl(&text, &scratch.join("fuzz.mtl")).map(|_| ()),
         Target::Manifest => Manifest::parse(&text, &scratch.join("fuzz-manifest.toml"), scratch).map(|_| ()),
+        Target::Xml => {
+            let p = scratch.join("fuzz-scene.xml");
+            crate::scene::mitsuba::xml::parse_text(&text, &p).and_then(|doc| crate::scene::mitsuba::build(&doc, &p)).map(|_| ())
+        }
+        Target::Ply => crate::scene::ply::parse_ply(input, &scratch.join("fuzz.ply")).map(|_| ()),
+        Target::Image => crate::texture::Image::decode(input, image_kind(input), false).map(|_| ()),
     };
     Ok(r.is_ok())
 }
@@ -206,14 +253,27 @@ fn seeds(scratch: &Path, extra: &[PathBuf]) -> Result<Vec<(Target, Vec<u8>)>> {
     }
     let exp = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
     files.extend(walk(&exp).into_iter().filter(|p| p.parent() == Some(exp.as_path())));
+    // Mitsuba scenes without spheres (a tessellated sphere makes an input slow), and
+    // their assets.
+    files.extend(["mi-interior.xml", "mi-textured.xml"].iter().map(|n| exp.join("scenes").join(n)).filter(|p| p.is_file()));
+    files.extend(walk(&exp.join("scenes").join("mitsuba")));
     for d in extra {
         files.extend(walk(d));
     }
-    let mut out = Vec::new();
+    let mut out = vec![(Target::Xml, XML_SEED.as_bytes().to_vec()), (Target::Ply, PLY_SEED.as_bytes().to_vec())];
+    {
+        let mut jpeg = Vec::new();
+        let img = image::RgbImage::from_fn(16, 8, |x, y| image::Rgb([(x * 16) as u8, (y * 30) as u8, 128]));
+        img.write_to(&mut std::io::Cursor::new(&mut jpeg), image::ImageFormat::Jpeg)?;
+        out.push((Target::Image, jpeg));
+    }
     for f in files {
         let target = match f.extension().and_then(|e| e.to_str()) {
             Some("obj") => Target::Obj,
             Some("mtl") => Target::Mtl,
+            Some("xml") => Target::Xml,
+            Some("ply") => Target::Ply,
+            Some("png" | "jpg" | "jpeg" | "exr") => Target::Image,
             Some("toml") => {
                 let t = std::fs::read_to_string(&f).unwrap_or_default();
                 if t.contains("[camera]") { Target::Scene } else { Target::Manifest }
@@ -263,6 +323,15 @@ pub fn fuzz(args: &FuzzArgs) -> Result<FuzzReport> {
             std::fs::copy(&e, scratch.join(name)).ok();
         }
     }
+    // XML seeds name their assets (and includes) relative to experiments/scenes.
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments").join("scenes");
+    std::fs::create_dir_all(scratch.join("mitsuba")).ok();
+    for e in walk(&scenes.join("mitsuba")) {
+        if let Some(name) = e.file_name() {
+            std::fs::copy(&e, scratch.join("mitsuba").join(name)).ok();
+        }
+    }
+    std::fs::copy(scenes.join("mi-interior-materials.xml"), scratch.join("mi-interior-materials.xml")).ok();
     let mut rng = Rng(args.seed);
     let last_panic: Arc<Mutex<String>> = Arc::new(Mutex::new(String::new()));
     let lp = last_panic.clone();

@@ -458,11 +458,22 @@ fn parse_obj_with(text: &str, path: &Path, read_mtl: bool) -> Result<ObjFile> {
             bail!("{file}:{}: normal index {} is out of range ({nn} normals defined)", f.line, bad as u64 + 1);
         }
     }
+    // Texture coordinates are optional: a face whose `vt` indices do not exist keeps
+    // its geometry and loses its texture coordinates (reported once).
     let nt = out.uvs.uvs.len();
-    for (f, t) in out.mesh.faces.iter().zip(&out.uvs.faces) {
-        if let Some(&bad) = t.iter().flatten().find(|&&v| v as usize >= nt) {
-            bail!("{file}:{}: texture coordinate index {} is out of range ({nt} defined)", f.line, bad as u64 + 1);
+    let mut bad_vt = None;
+    for (f, t) in out.mesh.faces.iter().zip(out.uvs.faces.iter_mut()) {
+        if t.iter().flatten().any(|&v| v as usize >= nt) {
+            bad_vt.get_or_insert(f.line);
+            *t = None;
         }
+    }
+    if let Some(ln) = bad_vt
+        && nt > 0
+    {
+        out.warnings.push(format!(
+            "{file}:{ln}: texture coordinate index out of range ({nt} `vt` defined); those faces have no texture coordinates"
+        ));
     }
     // Resolve material names: later libraries override earlier ones.
     let mut defined: HashMap<&str, &MtlEntry> = HashMap::new();
