@@ -5,7 +5,7 @@
 
 use super::Ctx;
 use super::grid::HashGrid;
-use super::lights::{emitter_pdfs, illuminate};
+use super::lights::{emitter_pdfs, env_radiance, illuminate};
 use super::mis::{Partials, w_to_a, weight_connect, weight_direct, weight_hit, weight_merge};
 use super::subpath::{LightVertex, adjoint_cos, scatter};
 use crate::accel::TraversalStats;
@@ -71,23 +71,26 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
     let mut len = 1u32;
     let mut specular_path = true;
     let mode = ctx.mode;
-    while let Some(it) = world.intersect(&ray, stats) {
+    loop {
+        let Some(it) = world.intersect(&ray, stats) else {
+            // Left the scene: the environment (s = 0), SmallVCM's background hit. The
+            // partials stay as the last scattering left them: a light at infinity has
+            // no distance or cosine at its "vertex".
+            if let Some((le, da, ew)) = env_radiance(&world.lights, ray.d.normalize()) {
+                let w = hit_weight(ctx, len, specular_path, &partials, Some((da, ew)));
+                if w > 0.0 && le.max_element() > 0.0 {
+                    let v = beta * le * w;
+                    l += v;
+                    rec.add(0, len + 1, w, v);
+                }
+            }
+            break;
+        };
         let wo = -ray.d.normalize();
         partials.arrive(ctx.f.h, Some((it.p - prev).length_squared()), wo.dot(it.sp.ng));
         let mat = world.material(&it);
         if it.front && mat.is_emitter() {
-            let w = if len == 1 {
-                1.0
-            } else if mode.merge && !mode.connect {
-                if specular_path { 1.0 } else { 0.0 }
-            } else if mode.connect {
-                match emitter_pdfs(&world.lights, it.tri, wo) {
-                    Some((da, ew)) => weight_hit(&ctx.f, &partials, da, ew),
-                    None => 0.0,
-                }
-            } else {
-                0.0
-            };
+            let w = hit_weight(ctx, len, specular_path, &partials, emitter_pdfs(&world.lights, it.tri, wo));
             if w > 0.0 {
                 let v = beta * mat.emission * w;
                 l += v;
@@ -97,7 +100,8 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
         if mode.lt || len >= ctx.max_len {
             break;
         }
-        let bsdf = &mat.bsdf;
+        let bsdf_at = world.bsdf_at(&it);
+        let bsdf: &Bsdf = &bsdf_at;
         if !bsdf.is_delta() {
             if mode.connect {
                 l += direct(ctx, s, bsdf, &it, wo, &partials, beta, len, rec, stats);
@@ -130,6 +134,25 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
         len += 1;
     }
     l
+}
+
+/// Weight of a camera path of `len` edges ending on an emitter (s = 0) with the
+/// emitter's densities `pdfs` (direct_pdf_a, emission_pdf_w; `None`: not a light).
+#[inline]
+fn hit_weight(ctx: &Ctx, len: u32, specular_path: bool, partials: &Partials, pdfs: Option<(f32, f32)>) -> f32 {
+    let mode = ctx.mode;
+    if len == 1 {
+        1.0
+    } else if mode.merge && !mode.connect {
+        if specular_path { 1.0 } else { 0.0 }
+    } else if mode.connect {
+        match pdfs {
+            Some((da, ew)) => weight_hit(&ctx.f, partials, da, ew),
+            None => 0.0,
+        }
+    } else {
+        0.0
+    }
 }
 
 /// Direct light sampling at a camera vertex (s = 1), weighted and with β applied.
@@ -207,7 +230,8 @@ pub fn connect(
     if f_c.max_element() <= 0.0 {
         return none;
     }
-    let lbsdf = &ctx.world.material(&v.it).bsdf;
+    let lbsdf_at = ctx.world.bsdf_at(&v.it);
+    let lbsdf: &Bsdf = &lbsdf_at;
     let f_l = lbsdf.eval(&v.it.sp, -dir, v.w_prev);
     if f_l.max_element() <= 0.0 {
         return none;

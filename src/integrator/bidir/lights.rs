@@ -138,6 +138,34 @@ pub fn emit(lights: &LightSet, scene: &Scene, u_sel: f32, u_pos: [f32; 2], u_dir
                 finite: false,
             }
         }
+        Light::Env(env) => {
+            // SmallVCM's `BackgroundLight`: a direction towards the environment by its
+            // own sampling, the ray starting on a disc of the bounding sphere's radius
+            // perpendicular to it, outside the sphere, travelling inwards.
+            let (w, radiance, dir_pdf) = env.sample(u_dir)?;
+            if dir_pdf <= 0.0 {
+                return None;
+            }
+            let r = lights.scene_radius;
+            let f = Frame::new(w);
+            let q = concentric_disc(u_pos);
+            let origin = lights.scene_center + w * (2.0 * r) + (f.s * q[0] + f.t * q[1]) * r;
+            let pdf_w = dir_pdf / (PI * r * r) * pick;
+            Emission {
+                origin,
+                dir: -w,
+                throughput: radiance / pdf_w,
+                // As SmallVCM, the "area" density of a light at infinity is the
+                // direction's solid-angle density.
+                direct_pdf_a: dir_pdf * pick,
+                emission_pdf_w: pdf_w,
+                cos: 1.0,
+                delta: false,
+                finite: false,
+            }
+        }
+        // Environment descriptions become `Light::Env` in `LightSet::build`.
+        Light::Desc(LightDesc::Constant { .. } | LightDesc::Envmap { .. }) => return None,
     };
     Some(e)
 }
@@ -216,6 +244,26 @@ pub fn illuminate(lights: &LightSet, scene: &Scene, p: Vec3, u_sel: f32, u: [f32
                 normal: Vec3::ZERO,
             })
         }
+        Light::Env(env) => {
+            let (wi, radiance, dir_pdf) = env.sample(u)?;
+            if dir_pdf <= 0.0 {
+                return None;
+            }
+            let r = lights.scene_radius;
+            Some(Illumination {
+                wi,
+                dist: f32::INFINITY,
+                radiance,
+                direct_pdf_w: dir_pdf,
+                emission_pdf_w: dir_pdf / (PI * r * r),
+                cos_at_light: 1.0,
+                pick,
+                delta: false,
+                point: Vec3::ZERO,
+                normal: Vec3::ZERO,
+            })
+        }
+        Light::Desc(LightDesc::Constant { .. } | LightDesc::Envmap { .. }) => None,
     }
 }
 
@@ -231,6 +279,19 @@ pub fn emitter_pdfs(lights: &LightSet, tri: u32, w: Vec3) -> Option<(f32, f32)> 
     let pick = lights.distribution.pmf(li as usize);
     let cos = w.dot(*normal).max(0.0);
     Some((pick / area, pick * cos * FRAC_1_PI / area))
+}
+
+/// A camera path that left the scene along unit direction `d` (pointing away from
+/// it): the environment's radiance there and its densities (direct_pdf_a,
+/// emission_pdf_w), selection included, as SmallVCM's `BackgroundLight::GetRadiance`.
+/// `None` without an environment.
+pub fn env_radiance(lights: &LightSet, d: Vec3) -> Option<(Color, f32, f32)> {
+    let idx = lights.env? as usize;
+    let Light::Env(env) = &lights.lights[idx] else { return None };
+    let pick = lights.distribution.pmf(idx);
+    let r = lights.scene_radius;
+    let direct_pdf_a = env.pdf(d) * pick;
+    Some((env.eval(d), direct_pdf_a, direct_pdf_a / (PI * r * r)))
 }
 
 #[cfg(test)]
@@ -260,5 +321,53 @@ mod tests {
         };
         let (da, ew) = emitter_pdfs(&lights, tri, e.dir).unwrap();
         assert!((da / e.direct_pdf_a - 1.0).abs() < 1e-5 && (ew / e.emission_pdf_w - 1.0).abs() < 1e-3);
+    }
+
+    /// The Cornell box lit only by a constant environment (its ceiling light off).
+    pub(crate) fn env_lit_cornell() -> Scene {
+        let mut scene = crate::scene::builtin::cornell();
+        for m in &mut scene.materials {
+            m.emission = Color::ZERO;
+        }
+        scene.lights.push(LightDesc::Constant { radiance: Color::new(0.8, 0.9, 1.0) });
+        scene
+    }
+
+    /// The same agreement for the environment, a light at infinity: its emitted ray
+    /// starts outside the bounding sphere and travels inwards, its "area" density is
+    /// the direction's density (SmallVCM's `BackgroundLight`), and a camera ray
+    /// escaping along the reverse direction sees the same densities.
+    #[test]
+    fn emission_and_illumination_densities_agree_for_the_environment() {
+        let scene = env_lit_cornell();
+        let lights = LightSet::build(&scene).unwrap();
+        assert_eq!(lights.lights.len(), 1);
+        let r = lights.scene_radius;
+        for k in 0..16 {
+            let u = |a: f32| (a + 0.618 * k as f32) % 1.0;
+            let e = emit(&lights, &scene, u(0.3), [u(0.2), u(0.7)], [u(0.4), u(0.1)]).unwrap();
+            assert!(!e.delta && !e.finite && e.cos == 1.0);
+            assert!((e.origin - lights.scene_center).length() > r, "starts outside the bounding sphere");
+            // Its line passes within r of the centre.
+            let c = lights.scene_center - e.origin;
+            assert!((c - e.dir * c.dot(e.dir)).length() <= r * (1.0 + 1e-4) && c.dot(e.dir) > 0.0);
+            let power = lights.lights[0].power(r);
+            assert!((crate::math::mean(e.throughput) / power - 1.0).abs() < 1e-4);
+            let dir_pdf = crate::math::UNIFORM_SPHERE_PDF;
+            assert!((e.direct_pdf_a / dir_pdf - 1.0).abs() < 1e-5);
+            assert!((e.emission_pdf_w * PI * r * r / dir_pdf - 1.0).abs() < 1e-4);
+            let p = lights.scene_center;
+            let il = illuminate(&lights, &scene, p, u(0.3), [u(0.2), u(0.7)]).unwrap();
+            assert!(il.dist.is_infinite() && !il.delta && il.cos_at_light == 1.0 && il.pick == 1.0);
+            assert!((il.emission_pdf_w * il.pick / e.emission_pdf_w - 1.0).abs() < 1e-4);
+            assert!((il.direct_pdf_w * il.pick / e.direct_pdf_a - 1.0).abs() < 1e-4);
+            assert_eq!(il.radiance, Color::new(0.8, 0.9, 1.0));
+            let (le, da, ew) = env_radiance(&lights, -e.dir).unwrap();
+            assert_eq!(le, Color::new(0.8, 0.9, 1.0));
+            assert!((da / e.direct_pdf_a - 1.0).abs() < 1e-5 && (ew / e.emission_pdf_w - 1.0).abs() < 1e-4);
+        }
+        // Without an environment a camera ray that escapes sees nothing.
+        let plain = crate::scene::builtin::cornell();
+        assert!(env_radiance(&LightSet::build(&plain).unwrap(), Vec3::Y).is_none());
     }
 }

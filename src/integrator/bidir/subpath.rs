@@ -137,7 +137,8 @@ pub fn trace_light<S: Sampler + ?Sized>(
         let wo = -ray.d.normalize();
         let d2 = (it.p - prev).length_squared();
         partials.arrive(ctx.f.h, (len > 1 || e.finite).then_some(d2), wo.dot(it.sp.ng));
-        let bsdf = &world.material(&it).bsdf;
+        let bsdf_at = world.bsdf_at(&it);
+        let bsdf: &Bsdf = &bsdf_at;
         if !bsdf.is_delta() {
             let v = LightVertex { it, w_prev: wo, throughput: beta, len, partials };
             if keep {
