@@ -37,9 +37,13 @@ fn ci_manifest(dir: &Path) -> (std::path::PathBuf, usize, Vec<String>) {
             _ => {
                 set(t, "photons", 4000.into());
                 set(t, "caustic_photons", 1000.into());
-                set(t, "gather_samples", 8.into());
-                if !t.contains_key("gather") {
-                    set(t, "ic_samples", 16.into());
+                match t.get("gather").and_then(|v| v.as_str()) {
+                    Some("direct") => {}
+                    Some("irradiance_cache") => {
+                        set(t, "gather_samples", 8.into());
+                        set(t, "ic_samples", 16.into());
+                    }
+                    _ => set(t, "gather_samples", 8.into()),
                 }
             }
         }

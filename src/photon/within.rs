@@ -38,6 +38,9 @@ mod tests {
     use crate::photon::record::Photon;
     use glam::Vec3;
 
+    /// A search under test: (r² returned, (distance², power) found, irradiance).
+    type Search<'a> = dyn Fn(&mut KnnHeap) -> (f32, Vec<(f32, Color)>, Color) + 'a;
+
     /// 6000 photons on the two faces of a folded sheet (y = 0 and the plane x = 0.5
     /// standing on it), powers varying with position.
     fn photons() -> (Vec<Vec3>, Vec<Photon>) {
@@ -82,7 +85,7 @@ mod tests {
             assert!(want.len() > 60, "{} photons", want.len());
             let exact = want.iter().fold(Color::ZERO, |s, (d2, c)| s + *c * prm.filter.weight(d2 / (r * r)))
                 / (prm.filter_norm * std::f32::consts::PI * r * r);
-            let mut check = |map: &dyn Fn(&mut KnnHeap) -> (f32, Vec<(f32, Color)>, Color)| {
+            let mut check = |map: &Search| {
                 let (r2, mut got, e) = map(&mut heap);
                 got.sort_by(|a, b| a.0.total_cmp(&b.0));
                 assert_eq!(r2, r * r);
