@@ -140,7 +140,7 @@ fn material_overrides_every_type_alias_and_default() {
         assert_eq!((&m.bsdf, m.emission), (bsdf, *emission), "{text}");
     }
     for (text, needle) in [
-        ("{ type = \"plastic\" }", "plastic"),
+        ("{ type = \"velvet\" }", "velvet"),
         ("{ type = \"glass\", roughness = 0.1 }", "roughness"),
         ("{ type = \"mirror\", albedo = [1, 1, 1] }", "albedo"),
         ("{ type = \"diffuse\", albedo = [1, 1, 1], kd = [1, 1, 1] }", "duplicate"),
