@@ -478,7 +478,7 @@ mod tests {
         assert!(m.mesh.faces[0].n.is_none());
         // Big endian.
         let be = String::from_utf8_lossy(&bytes).replace("binary_little_endian", "binary_big_endian");
-        assert!(be.len() > 0);
+        assert!(!be.is_empty());
         // Truncated body, bad index, bad header.
         let e = parse_ply(&bytes[..bytes.len() - 2], Path::new("b.ply")).unwrap_err().to_string();
         assert!(e.starts_with("b.ply:") && e.contains("end of file"), "{e}");

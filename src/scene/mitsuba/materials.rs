@@ -200,7 +200,7 @@ fn rough(p: &Plugin) -> Result<Rough> {
         return Err(p.err("anisotropic roughness (alpha_u/alpha_v) is not supported"));
     }
     let alpha = p.float_or("alpha", 0.1)?;
-    if !(alpha > 0.0) {
+    if alpha.is_nan() || alpha <= 0.0 {
         return Err(p.err(format!("alpha must be positive, got {alpha}")));
     }
     let sample_visible = p.bool_or("sample_visible", true)?;

@@ -27,6 +27,9 @@ use std::path::Path;
 use std::rc::Rc;
 use xml::{Plugin, SceneXml};
 
+/// A mapped material and its textured slots.
+type MappedMaterial = (Material, Vec<(crate::texture::Slot, crate::texture::Texture)>);
+
 /// Loads a Mitsuba 3 XML scene.
 pub fn load_mitsuba(path: &Path) -> Result<Scene> {
     let doc = xml::parse_file(path)?;
@@ -80,7 +83,7 @@ pub fn build(doc: &SceneXml, path: &Path) -> Result<Scene> {
     scene.default_spp = spp;
     scene.lights = lights;
     // Materials are mapped once per <bsdf> element (shared through <ref>).
-    let mut mapped: HashMap<*const Plugin, (Material, Vec<(crate::texture::Slot, crate::texture::Texture)>)> = HashMap::new();
+    let mut mapped: HashMap<*const Plugin, MappedMaterial> = HashMap::new();
     let mut one_sided: Vec<String> = Vec::new();
     for s in shapes {
         let mesh = shapes::shape_mesh(s, &mut warnings)?;

@@ -54,7 +54,7 @@ pub fn sensor(p: &Plugin, warnings: &mut Vec<String>) -> Result<SensorOut> {
             // Mitsuba: a 35 mm film's diagonal (43.27 mm) over the focal length.
             let s = f.map_or_else(|| "50mm".to_string(), |s| s.0);
             let mm: f32 = s.trim().trim_end_matches("mm").trim().parse().map_err(|_| p.err(format!("cannot parse focal_length `{s}`")))?;
-            if !(mm > 0.0) {
+            if mm.is_nan() || mm <= 0.0 {
                 return Err(p.err(format!("focal_length must be positive, got `{s}`")));
             }
             (2.0 * (36.0f32.hypot(24.0) / (2.0 * mm)).atan().to_degrees(), "diagonal".to_string())
