@@ -155,3 +155,23 @@ fn bad_settings_are_named() {
     assert!(err(cfg("vcm", 8, 1, 0).with("vcm_radius", -1.0)).contains("vcm_radius"));
     assert!(err(cfg("bdpt", 8, 1, 0).with("vcm_mode", "lt")).contains("vcm_mode"));
 }
+
+/// An open scene lit only by a constant environment (the Cornell box, ceiling light
+/// off, lit through its open front): `bdpt`, with its light subpaths starting on the
+/// bounding sphere's disc and camera paths that escape weighted as emitter hits at
+/// infinity, agrees with `path`.
+#[test]
+fn bdpt_agrees_with_path_under_a_constant_environment() {
+    let scene = || {
+        let mut s = builtin("cornell").unwrap();
+        for m in &mut s.materials {
+            m.emission = glam::Vec3::ZERO;
+        }
+        s.lights.push(photonlab::scene::LightDesc::Constant { radiance: glam::Vec3::new(0.8, 0.9, 1.0) });
+        s
+    };
+    let run = |c: RenderConfig| render_scene(scene(), &c, true).unwrap().film;
+    let reference = run(cfg("path", 24, 512, 41));
+    let img = run(cfg("bdpt", 24, 128, 42));
+    check("bdpt constant environment", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+}
