@@ -48,7 +48,10 @@ pub fn bind_mtl_maps(scene: &mut Scene, mat_base: u32, maps: &[MtlMaps], at: &st
             ));
         }
         let Some(kd) = &m.kd else { continue };
-        let (path, changed) = resolve_case_insensitive(kd).ok_or_else(|| anyhow!("{at}: map_Kd: texture {} not found", kd.display()))?;
+        let Some((path, changed)) = resolve_case_insensitive(kd) else {
+            scene.warnings.push(format!("{at}: map_Kd: texture {} not found; the material keeps its Kd", kd.display()));
+            continue;
+        };
         if changed {
             scene.warnings.push(format!("{at}: map_Kd {} resolved as {} (letter case differs)", kd.display(), path.display()));
         }
