@@ -91,7 +91,8 @@ fn the_atlas_runs_and_exposes_a_planted_bias() {
     assert!(num(planted[2]) < 0.85, "{planted:?}");
     assert!(num(planted[3]) < -15.0, "{planted:?}");
     assert!(num(planted[5]) < -4.0 || planted[5] == "−∞", "{planted:?}");
-    // The photon default on the plain box is not flagged like that.
+    // The photon default on the plain box is not flagged like that: at this size its
+    // worst block is noise (measured +18 % at +0.8 standard errors).
     let default = rows.iter().find(|r| r[0] == "cornell" && r[1].starts_with("photon (defaults")).unwrap();
-    assert!((num(default[2]) - 1.0).abs() < 0.1, "{default:?}");
+    assert!(num(default[5]).abs() < 4.0, "{default:?}");
 }
