@@ -155,15 +155,63 @@ impl World {
     }
 }
 
-/// Writes a textured value into a BSDF parameter. Slots a BSDF does not have are left
-/// alone (the loader binds only slots the material has).
-fn set_slot(b: &mut Bsdf, slot: Slot, rgb: impl Fn() -> Color, _scalar: impl Fn(bool) -> f32) {
-    match (slot, b) {
-        (Slot::DiffuseReflectance, Bsdf::Lambertian(m)) => m.albedo = rgb(),
-        (Slot::DiffuseReflectance, Bsdf::Glossy(m)) => m.kd = rgb(),
-        (Slot::SpecularReflectance, Bsdf::Mirror(m)) => m.reflectance = rgb(),
-        (Slot::SpecularReflectance, Bsdf::Glossy(m)) => m.ks = rgb(),
-        // Opacity belongs to the `mask` BSDF (not in this build).
-        _ => {}
+/// Writes a textured value into a BSDF parameter (nested ones included: a mask's
+/// BSDF, both sides of a two-sided one). Slots a BSDF does not have are left alone
+/// (the loaders bind only slots the material has).
+fn set_slot(b: &mut Bsdf, slot: Slot, rgb: impl Fn() -> Color, scalar: impl Fn(bool) -> f32) {
+    match slot {
+        Slot::DiffuseReflectance => {
+            b.set_color_param("diffuse_reflectance", rgb());
+        }
+        Slot::SpecularReflectance => {
+            b.set_color_param("specular_reflectance", rgb());
+        }
+        Slot::Opacity { alpha } => {
+            if let Bsdf::Mask(m) = b {
+                m.opacity = scalar(alpha).clamp(0.0, 1.0);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::linear::Linear;
+    use crate::material::{Mask, TwoSided};
+    use crate::texture::{Checkerboard, Texture};
+    use glam::Mat3;
+
+    /// Textures reach nested parameters: a mask's opacity, and the diffuse reflectance
+    /// of the two-sided BSDF inside it.
+    #[test]
+    fn textured_slots_reach_nested_bsdfs() {
+        let mut scene = crate::scene::builtin::cornell();
+        let lam = Bsdf::Lambertian(crate::material::Lambertian { albedo: Color::splat(0.5) });
+        scene.materials[0].bsdf = Bsdf::Mask(Mask { opacity: 1.0, nested: Box::new(Bsdf::TwoSided(TwoSided::new(lam))) });
+        let checker = |a: f32, b: f32| {
+            Texture::Checkerboard(Checkerboard { color0: Color::splat(a), color1: Color::splat(b), to_uv: Mat3::IDENTITY })
+        };
+        scene.textures.bind(0, Slot::Opacity { alpha: false }, checker(0.25, 0.75));
+        scene.textures.bind(0, Slot::DiffuseReflectance, checker(0.1, 0.9));
+        let tri = (0..scene.triangles.len() as u32).find(|&t| scene.tri_material[t as usize] == 0).unwrap();
+        let accel = Box::new(Linear::build(&scene.triangles));
+        let world = World::new(scene, accel).unwrap();
+        let it = |u: f32| Interaction {
+            p: Vec3::ZERO,
+            sp: ShadingPoint::new(Vec3::Z, Vec3::Z),
+            tri,
+            t: 1.0,
+            front: true,
+            uv: Vec2::new(u, 0.25),
+        };
+        for (u, opacity, albedo) in [(0.25, 0.25, 0.1), (0.75, 0.75, 0.9)] {
+            let Bsdf::Mask(m) = &*world.bsdf_at(&it(u)) else { panic!("not a mask") };
+            assert_eq!(m.opacity, opacity);
+            let Bsdf::TwoSided(t) = &*m.nested else { panic!("not two-sided") };
+            for side in [&t.front, &t.back] {
+                assert!(matches!(**side, Bsdf::Lambertian(ref l) if l.albedo == Color::splat(albedo)), "{side:?}");
+            }
+        }
     }
 }

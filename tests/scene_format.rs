@@ -245,6 +245,28 @@ fn mtl_rule_order_from_files() {
     assert!(s.warnings.len() == 1 && s.warnings[0].contains("map_Kd"), "{:?}", s.warnings);
 }
 
+/// `map_d` (named in another letter case than the file) cuts the material out: a mask
+/// whose opacity is the image's alpha channel.
+#[test]
+fn map_d_is_a_mask_from_the_alpha_channel() {
+    use photonlab::texture::Slot;
+    let d = tmp("mapd");
+    // 2×1 RGBA: left transparent, right opaque (colour channels white in both).
+    let img = image::RgbaImage::from_raw(2, 1, vec![255, 255, 255, 0, 255, 255, 255, 255]).unwrap();
+    img.save(d.join("Leaf_Mask.png")).unwrap();
+    write(&d, "m.mtl", "newmtl leaf\nKd 0 0 0\nmap_d leaf_mask.png\n");
+    // A quad at z = 0 with u across x (0 → 1).
+    let obj = "mtllib m.mtl\nv -1 0 0\nv 1 0 0\nv 1 2 0\nv -1 2 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+               usemtl leaf\nf 1/1 2/2 3/3 4/4\n";
+    write(&d, "m.obj", obj);
+    let p = write(&d, "m.toml", &format!("{CAMERA}\n[[mesh]]\nobj = \"m.obj\"\n{POINT}"));
+    let s = load_scene(&p).unwrap_or_else(|e| panic!("{e:#}"));
+    let leaf = s.materials.iter().position(|m| m.name == "leaf").unwrap();
+    assert!(matches!(&s.materials[leaf].bsdf, Bsdf::Mask(m) if matches!(*m.nested, Bsdf::Lambertian(_))), "{:?}", s.materials[leaf]);
+    assert!(s.textures.bindings.iter().any(|b| b.material as usize == leaf && b.slot == Slot::Opacity { alpha: true }));
+    assert!(s.warnings.iter().any(|w| w.contains("map_d") && w.contains("letter case")), "{:?}", s.warnings);
+}
+
 #[test]
 fn faces_negative_indices_quads_and_normals() {
     let d = tmp("faces");

@@ -17,9 +17,9 @@ use std::f64::consts::PI;
 /// Microfacet normal distribution (Mitsuba's `distribution` parameter).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MicrofacetType {
-    /// Beckmann (Gaussian slopes).
+    /// Beckmann (Gaussian slopes; Mitsuba 3's default).
     Beckmann,
-    /// GGX / Trowbridge-Reitz (Mitsuba's default).
+    /// GGX / Trowbridge-Reitz.
     Ggx,
 }
 

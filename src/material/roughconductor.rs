@@ -12,7 +12,7 @@ use glam::Vec3;
 /// Rough conductor.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoughConductor {
-    /// Microfacet distribution (Mitsuba's default: GGX).
+    /// Microfacet distribution (Mitsuba's default: Beckmann).
     pub distribution: MicrofacetType,
     /// Roughness α (Mitsuba's default 0.1).
     pub alpha: f32,

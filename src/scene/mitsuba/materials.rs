@@ -1,17 +1,22 @@
 //! Mitsuba `<bsdf>` plug-ins → photonlab materials, one function per plug-in.
 //!
-//! Mapped now: `diffuse` → Lambertian, `dielectric` → smooth dielectric (η = int/ext),
-//! `conductor` with `material="none"` → mirror, `twosided` (photonlab's BSDFs already
-//! reflect on both sides). The remaining plug-ins (`conductor` presets and η/k,
-//! `roughconductor`, `plastic`, `roughplastic`, `roughdielectric`, `thindielectric`,
-//! `mask`) read and check all their parameters here and then stop with a clear error
-//! until their BSDFs exist in `src/material/`; connecting one is the `todo_bsdf` call
-//! in its function.
+//! Each plug-in reads and checks all its parameters (Mitsuba 3's names and defaults) and
+//! maps onto the BSDF of the same name in `src/material/`: `diffuse` → Lambertian,
+//! `dielectric` → smooth dielectric (η = int/ext), `conductor` (`material="none"`: a
+//! perfect mirror; presets or `eta`/`k`, divided by `ext_eta`), `roughconductor`,
+//! `plastic`, `roughplastic`, `roughdielectric`, `thindielectric`, `twosided` and `mask`.
+//! Photonlab's Lambertian and mirror reflect on both sides, so a bare `diffuse` or
+//! `conductor none` is reported as a warning (Mitsuba's are black from behind); the
+//! microfacet and plastic BSDFs are one-sided exactly as in Mitsuba, and `twosided`
+//! makes them two-sided.
 
 use super::presets;
 use super::textures::{TextureCache, texture};
 use super::xml::{Plugin, SpectrumValue};
-use crate::material::{Bsdf, Dielectric, Lambertian, Material, Mirror};
+use crate::material::{
+    Bsdf, Conductor, Dielectric, Lambertian, Mask, Material, MicrofacetType, Mirror, Plastic, RoughConductor, RoughDielectric,
+    RoughPlastic, ThinDielectric, TwoSided,
+};
 use crate::math::Color;
 use crate::texture::{Slot, Texture};
 use anyhow::Result;
@@ -41,9 +46,9 @@ pub fn bsdf(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     let m = match p.ty.as_str() {
         "diffuse" => diffuse(p, cache)?,
         "dielectric" => dielectric(p)?,
-        "conductor" => conductor(p, cache)?,
+        "conductor" => conductor(p)?,
         "twosided" => twosided(p, cache)?,
-        "roughconductor" => roughconductor(p, cache)?,
+        "roughconductor" => roughconductor(p)?,
         "roughdielectric" => roughdielectric(p)?,
         "thindielectric" => thindielectric(p)?,
         "plastic" => plastic(p, cache)?,
@@ -112,10 +117,6 @@ fn ior(p: &Plugin, name: &str, default: &str) -> Result<f32> {
     }
 }
 
-fn todo_bsdf(p: &Plugin, params: impl std::fmt::Debug) -> anyhow::Error {
-    p.err(format!("this BSDF is not supported yet by this build (parameters read: {params:?})"))
-}
-
 fn diffuse(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     let mut textures = Vec::new();
     let albedo = colour(p, "reflectance", 0.5, cache)?.split(Slot::DiffuseReflectance, &mut textures);
@@ -135,12 +136,11 @@ fn dielectric(p: &Plugin) -> Result<Mapped> {
 }
 
 /// Conductor parameters: a preset (`material`) or explicit `eta`/`k`.
-#[derive(Debug)]
-#[allow(dead_code)] // read by `todo_bsdf`'s message until the conductor BSDFs exist
 struct ConductorParams {
+    /// Relative index η / ext_eta.
     eta: Vec3,
+    /// Relative absorption k / ext_eta.
     k: Vec3,
-    ext_eta: f32,
     specular_reflectance: Color,
 }
 
@@ -167,35 +167,36 @@ fn conductor_params(p: &Plugin) -> Result<Option<ConductorParams>> {
         // Mitsuba 3's default material is `none`: a perfect mirror.
         (None, false) => return Ok(None),
     };
-    Ok(Some(ConductorParams { eta, k, ext_eta, specular_reflectance }))
+    if eta.min_element() < 0.0 || k.min_element() < 0.0 {
+        return Err(p.err(format!("`eta` and `k` must not be negative, got {eta} and {k}")));
+    }
+    Ok(Some(ConductorParams { eta: eta / ext_eta, k: k / ext_eta, specular_reflectance }))
 }
 
-fn conductor(p: &Plugin, _cache: &mut TextureCache) -> Result<Mapped> {
+fn conductor(p: &Plugin) -> Result<Mapped> {
     // `material="none"` (the default) reflects everything: photonlab's mirror.
-    match conductor_params(p)? {
+    Ok(match conductor_params(p)? {
         None => {
             let reflectance = const_colour(p, "specular_reflectance", 1.0)?;
-            Ok(plain(p, Bsdf::Mirror(Mirror { reflectance }), true))
+            plain(p, Bsdf::Mirror(Mirror { reflectance }), true)
         }
-        Some(c) => Err(todo_bsdf(p, c)),
-    }
+        Some(c) => plain(p, Bsdf::Conductor(Conductor { eta: c.eta, k: c.k, specular_reflectance: c.specular_reflectance }), false),
+    })
 }
 
 /// Microfacet distribution and roughness.
-#[derive(Debug)]
-#[allow(dead_code)]
 struct Rough {
-    /// `ggx` or `beckmann`.
-    distribution: String,
+    distribution: MicrofacetType,
     alpha: f32,
-    sample_visible: bool,
 }
 
 fn rough(p: &Plugin) -> Result<Rough> {
-    let distribution = p.string("distribution")?.map_or_else(|| "beckmann".to_string(), |s| s.0);
-    if distribution != "ggx" && distribution != "beckmann" {
-        return Err(p.err(format!("distribution must be `ggx` or `beckmann`, got `{distribution}`")));
-    }
+    // Mitsuba 3's default distribution is Beckmann.
+    let distribution = match p.string("distribution")?.map(|s| s.0).as_deref() {
+        None | Some("beckmann") => MicrofacetType::Beckmann,
+        Some("ggx") => MicrofacetType::Ggx,
+        Some(other) => return Err(p.err(format!("distribution must be `ggx` or `beckmann`, got `{other}`"))),
+    };
     if p.float("alpha_u")?.is_some() || p.float("alpha_v")?.is_some() {
         return Err(p.err("anisotropic roughness (alpha_u/alpha_v) is not supported"));
     }
@@ -203,74 +204,144 @@ fn rough(p: &Plugin) -> Result<Rough> {
     if alpha.is_nan() || alpha <= 0.0 {
         return Err(p.err(format!("alpha must be positive, got {alpha}")));
     }
-    let sample_visible = p.bool_or("sample_visible", true)?;
-    Ok(Rough { distribution, alpha, sample_visible })
+    // Visible-normal sampling is always used; `false` (Mitsuba's full-distribution
+    // sampling) converges to the same image with more variance, so it is accepted.
+    let _ = p.bool_or("sample_visible", true)?;
+    Ok(Rough { distribution, alpha })
 }
 
-fn roughconductor(p: &Plugin, _cache: &mut TextureCache) -> Result<Mapped> {
+fn roughconductor(p: &Plugin) -> Result<Mapped> {
     let r = rough(p)?;
-    let c = conductor_params(p)?;
-    Err(todo_bsdf(p, (r, c)))
+    // `material="none"` (Mitsuba 3's default): η = 0, k = 1, a Fresnel term of one.
+    let (eta, k, specular_reflectance) = match conductor_params(p)? {
+        Some(c) => (c.eta, c.k, c.specular_reflectance),
+        None => (Vec3::ZERO, Vec3::ONE, const_colour(p, "specular_reflectance", 1.0)?),
+    };
+    let b = RoughConductor { distribution: r.distribution, alpha: r.alpha, eta, k, specular_reflectance };
+    Ok(plain(p, Bsdf::RoughConductor(b), false))
+}
+
+fn dielectric_iors(p: &Plugin) -> Result<(f32, f32, Color, Color)> {
+    let (int, ext) = (ior(p, "int_ior", "bk7")?, ior(p, "ext_ior", "air")?);
+    let r = const_colour(p, "specular_reflectance", 1.0)?;
+    let t = const_colour(p, "specular_transmittance", 1.0)?;
+    Ok((int, ext, r, t))
 }
 
 fn roughdielectric(p: &Plugin) -> Result<Mapped> {
     let r = rough(p)?;
-    let iors = (ior(p, "int_ior", "bk7")?, ior(p, "ext_ior", "air")?);
-    let spec = (const_colour(p, "specular_reflectance", 1.0)?, const_colour(p, "specular_transmittance", 1.0)?);
-    Err(todo_bsdf(p, (r, iors, spec)))
+    let (int_ior, ext_ior, specular_reflectance, specular_transmittance) = dielectric_iors(p)?;
+    let b =
+        RoughDielectric { distribution: r.distribution, alpha: r.alpha, int_ior, ext_ior, specular_reflectance, specular_transmittance };
+    Ok(plain(p, Bsdf::RoughDielectric(b), false))
 }
 
 fn thindielectric(p: &Plugin) -> Result<Mapped> {
-    let iors = (ior(p, "int_ior", "bk7")?, ior(p, "ext_ior", "air")?);
-    let spec = (const_colour(p, "specular_reflectance", 1.0)?, const_colour(p, "specular_transmittance", 1.0)?);
-    Err(todo_bsdf(p, (iors, spec)))
+    let (int_ior, ext_ior, specular_reflectance, specular_transmittance) = dielectric_iors(p)?;
+    Ok(plain(p, Bsdf::ThinDielectric(ThinDielectric { int_ior, ext_ior, specular_reflectance, specular_transmittance }), false))
 }
 
-fn plastic(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
-    let iors = (ior(p, "int_ior", "polypropylene")?, ior(p, "ext_ior", "air")?);
+/// The parameters both plastics share.
+struct PlasticParams {
+    int_ior: f32,
+    ext_ior: f32,
+    kd: Color,
+    ks: Color,
+    nonlinear: bool,
+    textures: Vec<(Slot, Texture)>,
+}
+
+fn plastic_params(p: &Plugin, cache: &mut TextureCache) -> Result<PlasticParams> {
+    let (int_ior, ext_ior) = (ior(p, "int_ior", "polypropylene")?, ior(p, "ext_ior", "air")?);
     let mut textures = Vec::new();
     let kd = colour(p, "diffuse_reflectance", 0.5, cache)?.split(Slot::DiffuseReflectance, &mut textures);
     let ks = const_colour(p, "specular_reflectance", 1.0)?;
     let nonlinear = p.bool_or("nonlinear", false)?;
-    Err(todo_bsdf(p, (iors, kd, ks, nonlinear)))
+    Ok(PlasticParams { int_ior, ext_ior, kd, ks, nonlinear, textures })
+}
+
+fn plastic(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
+    let q = plastic_params(p, cache)?;
+    let mut m = plain(p, Bsdf::Plastic(Plastic::new(q.kd, q.ks, q.int_ior, q.ext_ior, q.nonlinear)), false);
+    m.textures = q.textures;
+    Ok(m)
 }
 
 fn roughplastic(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     let r = rough(p)?;
-    let iors = (ior(p, "int_ior", "polypropylene")?, ior(p, "ext_ior", "air")?);
-    let mut textures = Vec::new();
-    let kd = colour(p, "diffuse_reflectance", 0.5, cache)?.split(Slot::DiffuseReflectance, &mut textures);
-    let ks = const_colour(p, "specular_reflectance", 1.0)?;
-    let nonlinear = p.bool_or("nonlinear", false)?;
-    Err(todo_bsdf(p, (r, iors, kd, ks, nonlinear)))
+    let q = plastic_params(p, cache)?;
+    let b = RoughPlastic::new(r.distribution, r.alpha, q.kd, q.ks, q.int_ior, q.ext_ior, q.nonlinear);
+    let mut m = plain(p, Bsdf::RoughPlastic(b), false);
+    m.textures = q.textures;
+    Ok(m)
+}
+
+/// True for BSDFs that let light through (not allowed inside `twosided`, whose sides
+/// only reflect, as Mitsuba's documentation requires).
+fn transmits(b: &Bsdf) -> bool {
+    matches!(b, Bsdf::Dielectric(_) | Bsdf::RoughDielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Mask(_))
+}
+
+/// True for photonlab BSDFs that already reflect on both sides.
+fn both_sides(b: &Bsdf) -> bool {
+    matches!(b, Bsdf::Lambertian(_) | Bsdf::Mirror(_) | Bsdf::Glossy(_))
 }
 
 fn twosided(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     let inner = p.children("bsdf");
-    match inner.as_slice() {
-        [b] => {
-            if b.ty == "twosided" {
-                return Err(b.err("a twosided BSDF inside another"));
-            }
-            let mut m = bsdf(b, cache)?;
-            if let Some(id) = &p.id {
-                m.material.name = id.clone();
-            }
-            m.one_sided = false;
-            Ok(m)
+    let mut sides = Vec::new();
+    for b in inner.iter() {
+        if b.ty == "twosided" {
+            return Err(b.err("a twosided BSDF inside another"));
         }
-        [_, b] => Err(b.err("twosided with different front and back BSDFs is not supported")),
-        _ => Err(p.err("needs exactly one nested <bsdf>")),
+        let m = bsdf(b, cache)?;
+        if transmits(&m.material.bsdf) {
+            return Err(b.err("twosided needs a BSDF that only reflects (it has no transmission)"));
+        }
+        sides.push(m);
     }
+    let name = name_of(p);
+    let mut m = match sides.len() {
+        1 => {
+            let mut m = sides.pop().expect("one side");
+            if !both_sides(&m.material.bsdf) {
+                m.material.bsdf = Bsdf::TwoSided(TwoSided::new(m.material.bsdf));
+            }
+            m
+        }
+        2 => {
+            let back = sides.pop().expect("two sides");
+            let front = sides.pop().expect("two sides");
+            if !front.textures.is_empty() || !back.textures.is_empty() {
+                return Err(p.err("textures on a twosided BSDF with different front and back BSDFs are not supported"));
+            }
+            let bsdf = Bsdf::TwoSided(TwoSided { front: Box::new(front.material.bsdf), back: Box::new(back.material.bsdf) });
+            Mapped { material: Material { name: String::new(), bsdf, emission: Color::ZERO }, textures: Vec::new(), one_sided: false }
+        }
+        _ => return Err(p.err("needs one or two nested <bsdf>")),
+    };
+    m.material.name = name;
+    m.one_sided = false;
+    Ok(m)
 }
 
 fn mask(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     let opacity = colour(p, "opacity", 0.5, cache)?;
     let inner = p.child("bsdf")?.ok_or_else(|| p.err("needs a nested <bsdf>"))?;
-    let m = bsdf(&inner, cache)?;
-    let o = match opacity {
-        Param::Const(c) => format!("{c}"),
-        Param::Tex(_) => "texture".into(),
+    let mut m = bsdf(&inner, cache)?;
+    let opacity = match opacity {
+        Param::Const(c) => {
+            if c.max_element() > 1.0 {
+                return Err(p.err(format!("`opacity` must lie in [0, 1], got {c}")));
+            }
+            crate::math::mean(c)
+        }
+        Param::Tex(t) => {
+            m.textures.push((Slot::Opacity { alpha: false }, t));
+            0.5
+        }
     };
-    Err(todo_bsdf(p, (o, m.material.name)))
+    m.material.bsdf = Bsdf::Mask(Mask { opacity, nested: Box::new(m.material.bsdf) });
+    m.material.name = name_of(p);
+    Ok(m)
 }

@@ -67,7 +67,12 @@ fn unsupported_things_are_errors_with_file_and_line() {
         ("<emitter type=\"skysun\"/>", "skysun"),
         ("<shape type=\"ply\"><string name=\"filename\" value=\"missing.ply\"/></shape>", "missing.ply"),
         ("<shape type=\"cube\"><bsdf type=\"dielectric\"><string name=\"int_ior\" value=\"unobtainium\"/></bsdf></shape>", "unobtainium"),
-        ("<shape type=\"cube\"><bsdf type=\"roughconductor\"/></shape>", "not supported yet"),
+        ("<shape type=\"cube\"><bsdf type=\"roughconductor\">\n<string name=\"distribution\" value=\"phong\"/></bsdf></shape>", "phong"),
+        ("<shape type=\"cube\"><bsdf type=\"twosided\">\n<bsdf type=\"dielectric\"/></bsdf></shape>", "only reflects"),
+        (
+            "<shape type=\"cube\"><bsdf type=\"conductor\">\n<string name=\"material\" value=\"Au\"/><rgb name=\"eta\" value=\"1\"/></bsdf></shape>",
+            "not both",
+        ),
     ];
     for (i, (body, needle)) in cases.iter().enumerate() {
         let p = write(d.path(), &format!("e{i}.xml"), &format!("{SENSOR}\n{body}"));
@@ -99,4 +104,54 @@ fn includes_defaults_and_ply_texture_round_trip() {
     assert_eq!(s.triangles.len(), 1);
     assert_eq!(s.materials[0].bsdf, crate::material::Bsdf::Lambertian(crate::material::Lambertian { albedo: Vec3::splat(0.25) }));
     assert!(matches!(s.lights[0], LightDesc::Constant { radiance } if radiance == Vec3::ONE));
+}
+
+#[test]
+fn every_bsdf_maps_to_its_namesake() {
+    use crate::material::{Bsdf, MicrofacetType};
+    let d = tempfile::tempdir().unwrap();
+    let bsdfs = [
+        r#"<bsdf type="conductor"><string name="material" value="Au"/></bsdf>"#,
+        r#"<bsdf type="conductor"><rgb name="eta" value="0.2, 0.9, 1.1"/><rgb name="k" value="3.9, 2.4, 1.9"/><float name="ext_eta" value="2"/></bsdf>"#,
+        r#"<bsdf type="roughconductor"><string name="distribution" value="ggx"/><float name="alpha" value="0.3"/></bsdf>"#,
+        r#"<bsdf type="roughconductor"><string name="material" value="Cu"/></bsdf>"#,
+        r#"<bsdf type="plastic"><texture type="checkerboard" name="diffuse_reflectance"/></bsdf>"#,
+        r#"<bsdf type="roughplastic"><float name="alpha" value="0.2"/><boolean name="nonlinear" value="true"/></bsdf>"#,
+        r#"<bsdf type="roughdielectric"><float name="int_ior" value="1.33"/></bsdf>"#,
+        r#"<bsdf type="thindielectric"/>"#,
+        r#"<bsdf type="twosided"><bsdf type="roughplastic"/></bsdf>"#,
+        r#"<bsdf type="twosided"><bsdf type="diffuse"/><bsdf type="conductor"/></bsdf>"#,
+        r#"<bsdf type="mask"><float name="opacity" value="0.25"/><bsdf type="diffuse"/></bsdf>"#,
+        r#"<bsdf type="mask"><texture type="checkerboard" name="opacity"/><bsdf type="twosided"><bsdf type="plastic"/></bsdf></bsdf>"#,
+    ];
+    let body: String = bsdfs.iter().map(|b| format!("<shape type=\"rectangle\">{b}</shape>\n")).collect();
+    let p = write(d.path(), "all.xml", &format!("{SENSOR}\n{body}"));
+    let s = load_scene(&p).unwrap();
+    let m: Vec<&Bsdf> = s.materials.iter().map(|m| &m.bsdf).collect();
+    assert_eq!(m.len(), bsdfs.len());
+    let au = super::presets::conductor("Au").unwrap();
+    // Divided by `ext_eta`, air (1.00028) by default, as Mitsuba 3 does.
+    assert!(
+        matches!(m[0], Bsdf::Conductor(c) if (c.eta * 1.00028 - au.0).abs().max_element() < 1e-5 && (c.k * 1.00028 - au.1).abs().max_element() < 1e-5)
+    );
+    assert!(matches!(m[1], Bsdf::Conductor(c) if c.eta == Vec3::new(0.1, 0.45, 0.55) && c.k == Vec3::new(1.95, 1.2, 0.95)));
+    assert!(
+        matches!(m[2], Bsdf::RoughConductor(c) if c.distribution == MicrofacetType::Ggx && c.alpha == 0.3 && c.eta == Vec3::ZERO && c.k == Vec3::ONE)
+    );
+    // Mitsuba 3's defaults: Beckmann, α = 0.1.
+    assert!(matches!(m[3], Bsdf::RoughConductor(c) if c.distribution == MicrofacetType::Beckmann && c.alpha == 0.1));
+    assert!(matches!(m[4], Bsdf::Plastic(_)));
+    assert!(matches!(m[5], Bsdf::RoughPlastic(r) if r.nonlinear && r.alpha == 0.2));
+    assert!(matches!(m[6], Bsdf::RoughDielectric(r) if r.int_ior == 1.33 && r.ext_ior == 1.00028));
+    assert!(matches!(m[7], Bsdf::ThinDielectric(_)));
+    assert!(matches!(m[8], Bsdf::TwoSided(t) if matches!(*t.front, Bsdf::RoughPlastic(_)) && t.front == t.back));
+    assert!(matches!(m[9], Bsdf::TwoSided(t) if matches!(*t.front, Bsdf::Lambertian(_)) && matches!(*t.back, Bsdf::Mirror(_))));
+    assert!(matches!(m[10], Bsdf::Mask(k) if k.opacity == 0.25 && matches!(*k.nested, Bsdf::Lambertian(_))));
+    assert!(matches!(m[11], Bsdf::Mask(k) if matches!(*k.nested, Bsdf::TwoSided(_))));
+    // The textured slots: the plastic's diffuse reflectance, the last mask's opacity.
+    let slots: Vec<(u32, crate::texture::Slot)> = s.textures.bindings.iter().map(|b| (b.material, b.slot)).collect();
+    assert!(slots.contains(&(4, crate::texture::Slot::DiffuseReflectance)), "{slots:?}");
+    assert!(slots.contains(&(11, crate::texture::Slot::Opacity { alpha: false })), "{slots:?}");
+    // Bare diffuse (the mask's) is reported as one-sided; nothing else is.
+    assert_eq!(s.warnings.iter().filter(|w| w.contains("one-sided")).count(), 1, "{:?}", s.warnings);
 }
