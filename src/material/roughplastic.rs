@@ -1,15 +1,16 @@
 //! Mitsuba 3's `roughplastic`: a rough dielectric coating (microfacet reflection,
 //! as `roughconductor` with the dielectric Fresnel term) over a diffuse base, one-sided.
-//! The base is seen through the rough interface: Mitsuba precomputes the interface's
-//! transmittance t(μ) = 1 − ∫ F·G1 over visible normals for 64 cosines and its
-//! internal hemispherical reflectance R_int, and uses
+//! The base is seen through the rough interface: Mitsuba 3 precomputes the interface's
+//! transmittance t(μ) = ∫ (1 − F)·G1(refracted, m) over visible normals for 64 cosines
+//! (light refracted into a masked direction is lost, so t < 1 − R at grazing angles)
+//! and its internal hemispherical reflectance R_int, and uses
 //! f_diffuse = ρ / (1 − R_int·(ρ if `nonlinear` else 1)) · t(cos θo)·t(cos θi) / (η² π).
 //! Here the same tables come from a deterministic midpoint quadrature (32×32 points
-//! in the visible-normal sample space per cosine, R_int by 256-point quadrature in μ)
-//! instead of Mitsuba's Gauss–Lobatto rule and linspace mean. Lobe choice: coating
+//! in the visible-normal sample space per cosine) instead of Mitsuba's Gauss–Legendre
+//! rule; R_int is Mitsuba's mean over the 64 table cosines. Lobe choice: coating
 //! with probability (1 − t(cos θo))·w / ((1 − t)·w + t·(1 − w)).
 
-use super::fresnel::fresnel_dielectric_eta;
+use super::fresnel::{fresnel_dielectric_eta, fresnel_full};
 use super::microfacet::{Microfacet, MicrofacetType, reflect_about};
 use super::plastic::sampling_weight;
 use super::{BsdfSample, ShadingPoint, front_pair};
@@ -65,6 +66,29 @@ pub fn rough_reflectance(mf: &Microfacet, mu: f32, eta: f32) -> f32 {
     (s / (n * n) as f64) as f32
 }
 
+/// Directional transmittance ∫ (1 − F)·G1(wt, m) dP(m) into a rough dielectric
+/// interface of relative index `eta`, lit from cosine `mu` (wt: the refracted
+/// direction, which must leave below the surface), by the same quadrature as
+/// [`rough_reflectance`] (Mitsuba 3's `eval_transmittance`).
+pub fn rough_transmittance(mf: &Microfacet, mu: f32, eta: f32) -> f32 {
+    let mu = mu.clamp(1e-4, 1.0);
+    let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+    let n = 32;
+    let mut s = 0.0f64;
+    for i in 0..n {
+        for j in 0..n {
+            let u = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
+            let m = mf.sample_visible(wo, u);
+            let (f, cos_t, _, eta_ti) = fresnel_full(wo.dot(m), eta);
+            let wt = m * (wo.dot(m) * eta_ti + cos_t) - wo * eta_ti;
+            if wt.z < 0.0 {
+                s += ((1.0 - f) * mf.g1(wt, m)) as f64;
+            }
+        }
+    }
+    (s / (n * n) as f64) as f32
+}
+
 impl RoughPlastic {
     /// Builds the material with its precomputed tables.
     #[allow(clippy::too_many_arguments)]
@@ -80,13 +104,16 @@ impl RoughPlastic {
         let eta = int_ior / ext_ior;
         let mf = Microfacet::new(distribution, alpha);
         let transmittance: Arc<[f32]> = (0..TRANSMITTANCE_RES)
-            .map(|i| 1.0 - rough_reflectance(&mf, i as f32 / (TRANSMITTANCE_RES - 1) as f32, eta))
+            .map(|i| rough_transmittance(&mf, i as f32 / (TRANSMITTANCE_RES - 1) as f32, eta))
             .collect::<Vec<_>>()
             .into();
-        let n = 256;
+        // R_int as Mitsuba 3 defines it: twice the mean of R(μ)·μ over the table's 64
+        // cosines (endpoints included, so about 1.5 % below 2∫R(μ)μ dμ; matching it
+        // keeps the diffuse part equal to Mitsuba's).
+        let n = TRANSMITTANCE_RES;
         let mut r = 0.0f64;
         for i in 0..n {
-            let mu = (i as f32 + 0.5) / n as f32;
+            let mu = (i as f32 / (n - 1) as f32).max(1e-6);
             r += rough_reflectance(&mf, mu, 1.0 / eta) as f64 * 2.0 * mu as f64;
         }
         RoughPlastic {
@@ -197,12 +224,47 @@ mod tests {
     use super::super::*;
     use super::*;
 
+    /// f·cos and pdf against Mitsuba 3.9.1's own (`tools/mitsuba_bsdf_values.py`), at a
+    /// near-normal and a grazing viewer: within 1 % (the quadratures differ). With
+    /// t = 1 − R instead of Mitsuba's transmittance the grazing value is 11 % high, with
+    /// R_int as an exact integral every diffuse value 2 % high.
+    #[test]
+    fn matches_mitsuba_values() {
+        let sp = ShadingPoint::new(Vec3::Z, Vec3::Z);
+        let n = |v: [f32; 3]| Vec3::from_array(v).normalize();
+        let pairs = [(n([0.3, 0.1, 0.9]), n([-0.5, 0.2, 0.7])), (n([0.8, 0.0, 0.2]), n([-0.1, 0.6, 0.3]))];
+        let beck = Bsdf::RoughPlastic(RoughPlastic::new(
+            MicrofacetType::Beckmann,
+            0.3,
+            Color::new(0.6, 0.6, 0.55),
+            Color::ONE,
+            1.49,
+            1.00028,
+            false,
+        ));
+        let ggx = Bsdf::RoughPlastic(RoughPlastic::new(MicrofacetType::Ggx, 0.15, Color::splat(0.5), Color::ONE, 1.49, 1.00028, false));
+        let mitsuba = [
+            (&beck, 0, 0.152873, 0.141960, 0.272344),
+            (&beck, 1, 0.0569038, 0.0521618, 0.0994147),
+            (&ggx, 0, 0.119985, 0.119985, 0.258587),
+            (&ggx, 1, 0.0456, 0.0456, 0.0939040),
+        ];
+        for (b, k, fx, fz, pdf) in mitsuba {
+            let (wo, wi) = pairs[k];
+            let f = b.eval(&sp, wo, wi) * wi.z;
+            let p = b.pdf(&sp, wo, wi);
+            for (got, want) in [(f.x, fx), (f.z, fz), (p, pdf)] {
+                assert!((got / want - 1.0).abs() < 0.01, "pair {k}: {got} vs Mitsuba {want}");
+            }
+        }
+    }
+
     /// The tables: t → 1 − F_dr-like values; a smooth-limit check against the smooth
     /// Fresnel term, and white-furnace: a white base under a rough coating keeps
     /// albedo below 1 — Mitsuba's model loses energy: the rough interface's internal
     /// reflectance R_int (grazing light inside is masked) is lower than a smooth one's,
     /// so the base's series 1/(1 − R_int) no longer balances its two transmissions
-    /// (≈ 10 % at α = 0.3, cos 0.9 for Beckmann, 26 % for GGX's longer tails).
+    /// (≈ 10–15 % at α = 0.3 for Beckmann, 26 % for GGX's longer tails).
     #[test]
     fn tables_and_furnace() {
         let smooth = RoughPlastic::new(MicrofacetType::Beckmann, 0.002, Color::ONE, Color::ONE, 1.5, 1.0, false);
@@ -210,14 +272,17 @@ mod tests {
             let f = fresnel::fresnel_dielectric_eta(mu, 1.5);
             assert!((smooth.t(mu) - (1.0 - f)).abs() < 3e-3, "μ {mu}: t {} vs 1−F {}", smooth.t(mu), 1.0 - f);
         }
-        assert!((smooth.internal_reflectance - fresnel::fresnel_diffuse_reflectance(1.0 / 1.5)).abs() < 3e-3);
+        // Mitsuba's R_int, a mean over 64 cosines with both ends, lies 1–3 % below the
+        // integral (F_dr for a smooth interface).
+        let ratio = smooth.internal_reflectance / fresnel::fresnel_diffuse_reflectance(1.0 / 1.5);
+        assert!(ratio > 0.97 && ratio < 0.99, "R_int / F_dr = {ratio}");
         let sp = ShadingPoint::new(Vec3::Z, Vec3::Z);
         for kind in [MicrofacetType::Beckmann, MicrofacetType::Ggx] {
             let white = Bsdf::RoughPlastic(RoughPlastic::new(kind, 0.3, Color::ONE, Color::ONE, 1.5, 1.0, false));
             for ct in [0.9f32, 0.5, 0.2] {
                 let wo = Vec3::new((1.0 - ct * ct).sqrt(), 0.0, ct);
                 let s = sampled_albedo(&white, &sp, wo, 300);
-                let min = if kind == MicrofacetType::Beckmann { 0.85 } else { 0.6 };
+                let min = if kind == MicrofacetType::Beckmann { 0.8 } else { 0.6 };
                 assert!(s.x <= 1.0 + 5e-3 && s.x > min, "{kind:?} cos {ct}: {s}");
                 let q = directional_albedo(&white, &sp, wo, 600);
                 assert!((q - s).abs().x < 0.01, "{kind:?} cos {ct}: quadrature {q} vs sampled {s}");

@@ -22,9 +22,13 @@ const SENSOR: &str = r#"<sensor type="perspective"><float name="fov" value="90"/
 
 #[test]
 fn shipped_scenes_load() {
-    for (name, textured, env) in
-        [("mi-materials", false, false), ("mi-textured", true, false), ("mi-envmap", false, true), ("mi-interior", false, false)]
-    {
+    for (name, textured, env) in [
+        ("mi-materials", false, false),
+        ("mi-textured", true, false),
+        ("mi-envmap", false, true),
+        ("mi-interior", false, false),
+        ("mi-rough", true, false),
+    ] {
         let s = load_scene(&scenes().join(format!("{name}.xml"))).unwrap_or_else(|e| panic!("{name}: {e}"));
         s.validate().unwrap();
         assert!(!s.triangles.is_empty(), "{name}");
