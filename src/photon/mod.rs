@@ -259,7 +259,9 @@ pub fn trace_path_in<S: Sampler + ?Sized>(
     let mut state = PathState::FromLight;
     let mut depth = 0u32;
     while let Some(it) = world.intersect(&ray, stats) {
-        let bsdf = &world.material(&it).bsdf;
+        // Textured parameters filled in: scattered power and the roulette's albedo
+        // follow the texel the photon landed on.
+        let bsdf = &*world.bsdf_at(&it);
         let wo = -ray.d;
         if !bsdf.is_delta() {
             let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };

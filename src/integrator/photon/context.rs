@@ -204,7 +204,7 @@ impl PhotonContext {
                 first_dist = seg;
             }
             length += seg;
-            let bsdf = &world.material(&it).bsdf;
+            let bsdf = &*world.bsdf_at(&it);
             let wo = -ray.d.normalize();
             if !bsdf.is_delta() {
                 // A mixed BSDF (plastic coating, mask): its delta lobes are followed with
@@ -238,10 +238,12 @@ impl PhotonContext {
     /// Radiance arriving along a gather ray of `level`, shaded where it lands:
     /// a photon-map lookup ([`PhotonContext::exitant_at_hit`]) on the last level, a
     /// full direct + caustic + gather on earlier ones. Also returns the distance to
-    /// the first surface (∞ when the ray escapes).
+    /// the first surface (∞ when the ray escapes). A ray that escapes carries no
+    /// radiance: the environment seen from the gathering point is its direct light
+    /// (light sampling), and seen through mirrors and glass its caustic.
     pub fn gather_ray(&self, world: &World, ray: Ray, level: usize, key: ShadeKey, stats: &mut TraversalStats) -> (Color, f32) {
         let Some(sp) = self.follow_specular_path(world, ray, key, stats) else { return (Color::ZERO, f32::INFINITY) };
-        let hb = &world.material(&sp.it).bsdf;
+        let hb = &*world.bsdf_at(&sp.it);
         let l = if level + 1 < self.gather_counts.len() {
             self.shade(&GatherPoint { world, it: &sp.it, wo: sp.wo, bsdf: hb, key }, level + 1, stats, false)
         } else {

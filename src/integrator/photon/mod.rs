@@ -1,12 +1,20 @@
 //! `photon`: the photon-mapping integrator of the design report.
 //!
 //! Pass 1 ([`crate::photon::build_maps`]) stores photons in the direct, indirect and
-//! caustic maps. Pass 2 traces camera rays: emitters seen directly or through mirrors
-//! and glass count fully; mirrors and glass are followed Whitted-style (both glass
-//! branches for the first two specular bounces, one chosen by weight after that);
-//! at the first non-specular surface the radiance is direct light by distribution ray
-//! tracing + caustics by direct visualisation of the caustic map + indirect light by
-//! the configured gather plug-in.
+//! caustic maps. Pass 2 traces camera rays: emitters and the environment seen directly
+//! or through mirrors and glass count fully; mirrors and glass are followed
+//! Whitted-style (both glass branches for the first two specular bounces, one chosen
+//! by weight after that); at the first non-specular surface the radiance is direct
+//! light by distribution ray tracing (the light set samples the environment too) +
+//! caustics by direct visualisation of the caustic map + indirect light by the
+//! configured gather plug-in. Every vertex, in both passes, scatters with its textured
+//! BSDF ([`World::bsdf_at`]); precomputed irradiance and the irradiance cache store
+//! irradiance, which each lookup multiplies by the reflectance of its own point.
+//!
+//! The environment is counted once: light arriving straight from it at a
+//! non-specular point comes from light sampling, so a final-gather ray that escapes
+//! (directly, or through mirrors and glass, which the caustic map covers) carries
+//! nothing; light it sends after a bounce comes from the photons it emits.
 
 pub mod context;
 pub mod gather;
@@ -223,13 +231,20 @@ impl PhotonIntegrator {
     }
 
     fn radiance(&self, ctx: &PhotonContext, world: &World, ray: &Ray, sdepth: u32, key: ShadeKey, stats: &mut TraversalStats) -> Color {
-        let Some(it) = world.intersect(ray, stats) else { return Color::ZERO };
+        let seen = matches!(self.output, Output::All | Output::Direct);
+        // A camera ray or specular chain that leaves the scene sees the environment
+        // (light reaching it from there after a diffuse or glossy bounce comes from
+        // light sampling and the photon maps, never from a gather ray that escapes).
+        let Some(it) = world.intersect(ray, stats) else {
+            return if seen { world.escaped(ray.d.normalize()) } else { Color::ZERO };
+        };
         let mat = world.material(&it);
         let mut l = Color::ZERO;
-        if it.front && mat.is_emitter() && matches!(self.output, Output::All | Output::Direct) {
+        if it.front && mat.is_emitter() && seen {
             l += mat.emission;
         }
-        let bsdf = &mat.bsdf;
+        // Textured parameters filled in (borrowed, untouched, when untextured).
+        let bsdf = &*world.bsdf_at(&it);
         let wo = -ray.d.normalize();
         // Delta lobes (all of a mirror's or glass's; a plastic coating's or a mask's
         // null lobe besides the other lobes shaded below) are followed as branches.

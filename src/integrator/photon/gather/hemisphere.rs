@@ -319,7 +319,7 @@ mod tests {
         let wo = Vec3::Y;
         let key = ShadeKey(0x6EAD);
         let gather_at = |at: &Interaction, n: u32| {
-            let bsdf = &world.material(at).bsdf;
+            let bsdf = &*world.bsdf_at(at);
             let mut st = TraversalStats::default();
             gather(ctx, &GatherPoint { world: &world, it: at, wo, bsdf, key }, n, Refine::OFF, &mut st)
         };

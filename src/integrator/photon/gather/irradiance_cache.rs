@@ -331,7 +331,7 @@ impl IrradianceCache {
                     let ray = cam.generate_ray(x as f32 + jx, y as f32 + jy);
                     let path = ctx.follow_specular_path(world, ray, path_key, &mut stats)?;
                     let (it, wo) = (path.it, path.wo);
-                    let bsdf = &world.material(&it).bsdf;
+                    let bsdf = &*world.bsdf_at(&it);
                     if !cacheable(bsdf) || self.lookup(it.p, facing_shading_normal(&it, wo)).is_some() {
                         return None;
                     }
