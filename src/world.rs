@@ -205,7 +205,8 @@ mod tests {
             front: true,
             uv: Vec2::new(u, 0.25),
         };
-        for (u, opacity, albedo) in [(0.25, 0.25, 0.1), (0.75, 0.75, 0.9)] {
+        // (The scalar checkerboard has Mitsuba's opposite phase: see `Checkerboard::eval_1`.)
+        for (u, opacity, albedo) in [(0.25, 0.75, 0.1), (0.75, 0.25, 0.9)] {
             let Bsdf::Mask(m) = &*world.bsdf_at(&it(u)) else { panic!("not a mask") };
             assert_eq!(m.opacity, opacity);
             let Bsdf::TwoSided(t) = &*m.nested else { panic!("not two-sided") };

@@ -37,7 +37,8 @@ impl Texture {
     }
 
     /// Scalar value (opacity): the alpha channel of images that have one when
-    /// `alpha` is asked for, else the mean of RGB.
+    /// `alpha` is asked for, else the mean of RGB (a checkerboard's in Mitsuba's
+    /// scalar phase, see [`Checkerboard::eval_1`]).
     #[inline]
     pub fn eval_1(&self, uv: Vec2, alpha: bool) -> f32 {
         match self {
@@ -45,7 +46,7 @@ impl Texture {
                 let v = b.eval(uv);
                 if alpha && b.image.has_alpha { v.w } else { (v.x + v.y + v.z) / 3.0 }
             }
-            Texture::Checkerboard(c) => crate::math::mean(c.eval(uv)),
+            Texture::Checkerboard(c) => c.eval_1(uv),
         }
     }
 }
