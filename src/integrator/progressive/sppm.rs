@@ -2,13 +2,19 @@
 //! as pbrt-v4's `SPPMIntegrator`.
 //!
 //! Every pass:
-//! 1. **Camera pass.** One camera path per pixel (sample index = pass). Emitters seen
-//!    directly or through mirrors and glass count fully; delta surfaces are followed
-//!    by sampling one lobe; at the first non-delta (diffuse or glossy) surface the
-//!    path stops and leaves a *visible point* (position, `wo`, BSDF, throughput β).
+//! 1. **Camera pass.** One camera path per pixel (sample index = pass). Emitters and
+//!    the environment (a path that leaves the scene) seen directly or through mirrors
+//!    and glass count fully; delta surfaces are followed by sampling one lobe; at the
+//!    first non-delta (diffuse or glossy) surface the path stops and leaves a *visible
+//!    point* (position, `wo`, BSDF, throughput β). Every BSDF, there and before, has
+//!    its textured parameters filled in ([`World::bsdf_at`]).
 //!    Direct light is added there by `direct_samples` shadow rays (one unless set, as
 //!    pbrt-v4's one light sample per pass), stratified by
 //!    `direct_sampler` (`sppm_direct = "trace"`), or left to the photons (`"photons"`).
+//!    The light set samples the environment too, and the path stops at the visible
+//!    point (no BSDF-sampled ray leaves it), so environment light reaching a visible
+//!    point directly is counted once: by the shadow rays, or by the photons' first
+//!    hits (`"photons"`; environment photons come from [`crate::photon::emit`]).
 //! 2. **Photon pass.** `photons_per_pass` photon paths (2 per pixel unless set;
 //!    indices 0 … M − 1 of a sampler stream of the pass's own, so each pass is an
 //!    independent randomisation of the same point set and the radical inverses stay
@@ -42,15 +48,16 @@ use crate::config::RenderConfig;
 use crate::film::Film;
 use crate::integrator::photon::DirectParams;
 use crate::integrator::render::RenderStats;
-use crate::material::{ShadingPoint, TransportMode};
+use crate::material::{Bsdf, ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
 use crate::photon::{MapKind, RawPhoton, estimate, trace_path_in};
 use crate::rr::{RrContext, RussianRoulette, roulette};
 use crate::sampler::{AnySampler, BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
-use crate::world::World;
+use crate::world::{Interaction, World};
 use anyhow::{Result, bail};
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -144,8 +151,18 @@ pub struct VisiblePoint {
     pub sp: ShadingPoint,
     /// Triangle (its material's BSDF is evaluated per photon).
     pub tri: u32,
+    /// Texture coordinates (the material's textured parameters, [`VisiblePoint::bsdf`]).
+    pub uv: Vec2,
     /// Camera-path throughput.
     pub beta: Color,
+}
+
+impl VisiblePoint {
+    /// The BSDF at the visible point, textured parameters filled in ([`World::bsdf_at`]).
+    pub fn bsdf<'w>(&self, world: &'w World) -> Cow<'w, Bsdf> {
+        let it = Interaction { p: self.p, sp: self.sp, tri: self.tri, t: 0.0, front: true, uv: self.uv };
+        world.bsdf_at(&it)
+    }
 }
 
 /// A camera path's emitted + direct radiance and its visible point.
@@ -253,16 +270,24 @@ impl SppmIntegrator {
         let mut l = Color::ZERO;
         let max_depth = self.cfg.depth_limit();
         let mut depth = 0u32;
-        while let Some(it) = world.intersect(&ray, stats) {
-            let mat = world.material(&it);
+        loop {
             // Every vertex before the visible point was reached by the camera, a delta
             // lobe or a glossy-only surface passed through by BSDF sampling (which has
-            // no light sampling), so emission counts fully.
+            // no light sampling), so emission and the environment count fully.
+            let Some(it) = world.intersect(&ray, stats) else {
+                if world.lights.env.is_some() {
+                    l += beta * world.escaped(ray.d.normalize());
+                }
+                break;
+            };
+            let mat = world.material(&it);
             if it.front && mat.is_emitter() {
                 l += beta * mat.emission;
             }
             let wo = -ray.d.normalize();
-            let bsdf = &mat.bsdf;
+            // Textured parameters filled in (borrowed as is for untextured materials).
+            let bsdf_at = world.bsdf_at(&it);
+            let bsdf: &Bsdf = &bsdf_at;
             let dim = bounce_dim(depth);
             // As pbrt-v4: the visible point is the first vertex with a diffuse part (or
             // any non-delta one at the depth limit). A mixed BSDF's delta lobes are
@@ -297,7 +322,7 @@ impl SppmIntegrator {
                     l += beta * sum / n as f32;
                 }
                 let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
-                return (l, Some(VisiblePoint { p: it.p, n, wo, sp: it.sp, tri: it.tri, beta }));
+                return (l, Some(VisiblePoint { p: it.p, n, wo, sp: it.sp, tri: it.tri, uv: it.uv, beta }));
             }
             if depth >= max_depth {
                 break;
@@ -604,9 +629,9 @@ impl Extend<RawPhoton> for Kept<'_> {
 /// light it would reach after one more bounce is carried by photons).
 fn direct_light(
     world: &World,
-    it: &crate::world::Interaction,
+    it: &Interaction,
     wo: Vec3,
-    bsdf: &crate::material::Bsdf,
+    bsdf: &Bsdf,
     u_sel: f32,
     u_light: [f32; 2],
     stats: &mut TraversalStats,
@@ -685,7 +710,8 @@ fn disc_inside_triangle(world: &World, vp: &VisiblePoint, r: f32) -> bool {
 /// the same for every photon in the shading hemisphere of wo, so it multiplies the
 /// summed power once; only a glossy lobe is evaluated per photon.
 pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u64, DVec3) {
-    let bsdf = &world.scene.material(vp.tri).bsdf;
+    let bsdf_at = vp.bsdf(world);
+    let bsdf: &Bsdf = &bsdf_at;
     let glossy = bsdf.has_glossy();
     // f ≠ 0 needs wo and wi strictly on one side of the shading normal (and of the
     // geometric one, which `vp.n` already faces).
