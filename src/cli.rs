@@ -117,8 +117,9 @@ pub struct RenderArgs {
     /// e.g. `--gather final_gather --ic-tolerance 0.2 --resume`.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
-    /// Extra images (photon integrator): direct, caustic, indirect, photons-direct,
-    /// photons-indirect, photons-caustic, cache. Repeat or comma-separate.
+    /// Extra images: direct, caustic, indirect (path, photon); photons-direct,
+    /// photons-indirect, photons-caustic, cache (photon); strategies (bdpt, vcm: one
+    /// image per technique, weighted and unweighted). Repeat or comma-separate.
     #[arg(long, value_delimiter = ',')]
     pub aov: Vec<String>,
     /// Render only samples A..B-1 of every pixel (of the --spp N render) and write their

@@ -14,10 +14,10 @@ use crate::integrator::bidir::{
 };
 use crate::integrator::photon::gather::{GatherParams, irradiance_cache::CacheSettings, precomputed::PrecomputedParams};
 use crate::integrator::photon::{DirectParams, PhotonIntegrator, PhotonParams};
-use crate::integrator::ppm::PpmParams;
 use crate::integrator::progressive::ProgressiveParams;
-use crate::integrator::sppm::SppmParams;
-use crate::integrator::{Integrator, path::PathIntegrator, ppm::PpmIntegrator, sppm::SppmIntegrator};
+use crate::integrator::progressive::ppm::{PpmIntegrator, PpmParams};
+use crate::integrator::progressive::sppm::{SppmIntegrator, SppmParams};
+use crate::integrator::{Integrator, path::PathIntegrator};
 use crate::param::Reader;
 use crate::param::docs::{Catalogue, Family, Group, Plugin};
 pub use crate::rr::{NAMES as RR_POLICIES, make as make_rr};

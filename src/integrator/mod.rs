@@ -3,11 +3,8 @@
 pub mod bidir;
 pub mod path;
 pub mod photon;
-pub mod ppm;
 pub mod progressive;
 pub mod render;
-pub mod sppm;
-pub mod sppm_grid;
 
 use crate::accel::TraversalStats;
 use crate::film::Film;

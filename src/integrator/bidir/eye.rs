@@ -43,7 +43,7 @@ pub struct MergeSet<'a> {
 
 /// Smallest cosine between the normals of a merged light vertex and camera vertex
 /// (as `sppm`'s photon test: light on another face of a corner is not merged).
-const MERGE_NORMAL_COS: f32 = crate::integrator::sppm::NORMAL_COS;
+const MERGE_NORMAL_COS: f32 = crate::integrator::progressive::sppm::NORMAL_COS;
 
 /// Radiance estimate of pixel (x, y)'s camera subpath of sample `index`.
 #[allow(clippy::too_many_arguments)]

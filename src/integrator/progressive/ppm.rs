@@ -20,12 +20,12 @@
 //! are consistent too (their photon estimates and precomputed-point lookups use r_i).
 //! With `irradiance_cache` the tolerance a shrinks with the radius, a_i = a · r_i / r_1,
 //! so the entries' reach — and the interpolation error — shrink with the kernel's.
-use super::Integrator;
-use super::photon::gather::GatherSpec;
-use super::photon::{Output, PhotonIntegrator, PhotonSetup};
-use super::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, next_radius2, save_checkpoint};
+use super::{Budget, OnPass, ProgressiveParams, load_checkpoint, next_radius2, save_checkpoint};
 use crate::config::RenderConfig;
 use crate::film::Film;
+use crate::integrator::Integrator;
+use crate::integrator::photon::gather::GatherSpec;
+use crate::integrator::photon::{Output, PhotonIntegrator, PhotonSetup};
 use crate::integrator::render::{RenderStats, render};
 use crate::math::hash_words;
 use crate::world::World;
@@ -191,7 +191,7 @@ impl PpmIntegrator {
     }
 }
 
-super::progressive::progressive_integrator!(PpmIntegrator, "ppm");
+super::progressive_integrator!(PpmIntegrator, "ppm");
 
 #[cfg(test)]
 mod tests {

@@ -1,6 +1,12 @@
-//! What the progressive integrators (`sppm`, `ppm`) share: the pass budget
-//! (`passes`, `time_limit`), the radius schedule of Knaus & Zwicker (2011) and the
-//! validation of the progressive settings.
+//! The progressive integrators: `sppm` (stochastic progressive photon mapping, its
+//! photon hash grid in `grid.rs`) and `ppm` (probabilistic progressive photon
+//! mapping), and what they share: the pass budget (`passes`, `time_limit`), the
+//! radius schedule of Knaus & Zwicker (2011), checkpoints and the validation of the
+//! progressive settings.
+
+pub mod grid;
+pub mod ppm;
+pub mod sppm;
 
 use crate::config::RenderConfig;
 use crate::film::Film;

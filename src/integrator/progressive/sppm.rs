@@ -2,13 +2,19 @@
 //! as pbrt-v4's `SPPMIntegrator`.
 //!
 //! Every pass:
-//! 1. **Camera pass.** One camera path per pixel (sample index = pass). Emitters seen
-//!    directly or through mirrors and glass count fully; delta surfaces are followed
-//!    by sampling one lobe; at the first non-delta (diffuse or glossy) surface the
-//!    path stops and leaves a *visible point* (position, `wo`, BSDF, throughput β).
+//! 1. **Camera pass.** One camera path per pixel (sample index = pass). Emitters and
+//!    the environment (a path that leaves the scene) seen directly or through mirrors
+//!    and glass count fully; delta surfaces are followed by sampling one lobe; at the
+//!    first non-delta (diffuse or glossy) surface the path stops and leaves a *visible
+//!    point* (position, `wo`, BSDF, throughput β). Every BSDF, there and before, has
+//!    its textured parameters filled in ([`World::bsdf_at`]).
 //!    Direct light is added there by `direct_samples` shadow rays (one unless set, as
 //!    pbrt-v4's one light sample per pass), stratified by
 //!    `direct_sampler` (`sppm_direct = "trace"`), or left to the photons (`"photons"`).
+//!    The light set samples the environment too, and the path stops at the visible
+//!    point (no BSDF-sampled ray leaves it), so environment light reaching a visible
+//!    point directly is counted once: by the shadow rays, or by the photons' first
+//!    hits (`"photons"`; environment photons come from [`crate::photon::emit`]).
 //! 2. **Photon pass.** `photons_per_pass` photon paths (2 per pixel unless set;
 //!    indices 0 … M − 1 of a sampler stream of the pass's own, so each pass is an
 //!    independent randomisation of the same point set and the radical inverses stay
@@ -35,22 +41,23 @@
 //! in the same order for any thread count (pbrt-v4 splats photons into the visible
 //! points with atomic adds instead, whose order depends on the schedule).
 
-use super::photon::DirectParams;
-use super::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, save_checkpoint};
-pub use super::sppm_grid::{GridPhoton, PhotonGrid};
+pub use super::grid::{GridPhoton, PhotonGrid};
+use super::{Budget, OnPass, ProgressiveParams, load_checkpoint, save_checkpoint};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
 use crate::film::Film;
+use crate::integrator::photon::DirectParams;
 use crate::integrator::render::RenderStats;
-use crate::material::{ShadingPoint, TransportMode};
+use crate::material::{Bsdf, ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
 use crate::photon::{MapKind, RawPhoton, estimate, trace_path_in};
 use crate::rr::{RrContext, RussianRoulette, roulette};
-use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
-use crate::world::World;
+use crate::sampler::{AnySampler, BOUNCE_BSDF_LOBE, BOUNCE_RR, DIM_PIXEL, Sampler, bounce_dim};
+use crate::world::{Interaction, World};
 use anyhow::{Result, bail};
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -144,8 +151,18 @@ pub struct VisiblePoint {
     pub sp: ShadingPoint,
     /// Triangle (its material's BSDF is evaluated per photon).
     pub tri: u32,
+    /// Texture coordinates (the material's textured parameters, [`VisiblePoint::bsdf`]).
+    pub uv: Vec2,
     /// Camera-path throughput.
     pub beta: Color,
+}
+
+impl VisiblePoint {
+    /// The BSDF at the visible point, textured parameters filled in ([`World::bsdf_at`]).
+    pub fn bsdf<'w>(&self, world: &'w World) -> Cow<'w, Bsdf> {
+        let it = Interaction { p: self.p, sp: self.sp, tri: self.tri, t: 0.0, front: true, uv: self.uv };
+        world.bsdf_at(&it)
+    }
 }
 
 /// A camera path's emitted + direct radiance and its visible point.
@@ -253,16 +270,24 @@ impl SppmIntegrator {
         let mut l = Color::ZERO;
         let max_depth = self.cfg.depth_limit();
         let mut depth = 0u32;
-        while let Some(it) = world.intersect(&ray, stats) {
-            let mat = world.material(&it);
+        loop {
             // Every vertex before the visible point was reached by the camera, a delta
             // lobe or a glossy-only surface passed through by BSDF sampling (which has
-            // no light sampling), so emission counts fully.
+            // no light sampling), so emission and the environment count fully.
+            let Some(it) = world.intersect(&ray, stats) else {
+                if world.lights.env.is_some() {
+                    l += beta * world.escaped(ray.d.normalize());
+                }
+                break;
+            };
+            let mat = world.material(&it);
             if it.front && mat.is_emitter() {
                 l += beta * mat.emission;
             }
             let wo = -ray.d.normalize();
-            let bsdf = &mat.bsdf;
+            // Textured parameters filled in (borrowed as is for untextured materials).
+            let bsdf_at = world.bsdf_at(&it);
+            let bsdf: &Bsdf = &bsdf_at;
             let dim = bounce_dim(depth);
             // As pbrt-v4: the visible point is the first vertex with a diffuse part (or
             // any non-delta one at the depth limit). A mixed BSDF's delta lobes are
@@ -297,7 +322,7 @@ impl SppmIntegrator {
                     l += beta * sum / n as f32;
                 }
                 let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
-                return (l, Some(VisiblePoint { p: it.p, n, wo, sp: it.sp, tri: it.tri, beta }));
+                return (l, Some(VisiblePoint { p: it.p, n, wo, sp: it.sp, tri: it.tri, uv: it.uv, beta }));
             }
             if depth >= max_depth {
                 break;
@@ -332,19 +357,8 @@ impl SppmIntegrator {
         if budget.max_passes != u32::MAX && m.saturating_mul(budget.max_passes as u64) > u32::MAX as u64 * 64 {
             bail!("photons per pass × passes is too large ({m} × {})", budget.max_passes);
         }
-        let alpha = self.set.prog.alpha as f64;
         let r0 = self.set.p.sppm_radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius) as f64;
-        let counts = (budget.max_passes != u32::MAX).then_some(budget.max_passes as u64);
-        // Concrete samplers: the camera and photon passes are compiled per sampler type.
-        let cam_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, counts)?;
-        // Every pass traces photon indices 0 … M − 1 of a stream of its own.
-        let emit_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, Some(m))?;
-        let probes = self.set.p.sppm_area_probes;
-        let seed = self.cfg.seed;
-        let probe_key = |pixel: usize, pass: u32| hash_words(&[seed, pixel as u64, pass as u64, 0xA2EA]);
-        let keep_first = self.set.p.sppm_direct == "photons";
-        let n_direct = self.set.direct.direct_samples.max(1) as u64;
-        let direct_sampler = crate::sampler::make(&self.set.direct.direct_sampler, self.cfg.seed, Some(n_direct))?;
+        let phases = Phases::new(self, world, m, budget.max_passes)?;
         let mut pixels = vec![PixelStats::new(r0); npix];
         let mut stats = RenderStats::default();
         let (mut t_camera, mut t_photon, mut t_gather) = (0.0, 0.0, 0.0);
@@ -366,121 +380,23 @@ impl SppmIntegrator {
         let mut vps: Vec<Option<VisiblePoint>> = vec![None; npix];
         // Each photon chunk's kept photons, in path order.
         let mut traced: Vec<Vec<GridPhoton>> = Vec::new();
-        let mut grid = PhotonGrid::default();
-        let mut found: Vec<Option<(u64, DVec3)>> = Vec::new();
+        let mut gather = GatherBuffers::default();
         while budget.more(pass) {
-            // 1. Camera pass: rows in parallel, written in place.
             let t0 = Instant::now();
-            // Also the largest radius of a pixel with a visible point (the grid's cell
-            // edge), while the rows are at hand: radii change only in the update.
-            let (st, bad, r_max) = pixels
-                .par_chunks_mut(w as usize)
-                .zip(vps.par_chunks_mut(w as usize))
-                .with_max_len(1)
-                .enumerate()
-                .map_init(
-                    || (cam_sampler.clone(), direct_sampler.clone_box()),
-                    |(s, ds), (y, (prow, vrow))| {
-                        let mut st = TraversalStats::default();
-                        let (mut bad, mut r_max) = (0u64, 0.0f64);
-                        for (x, (px, vp)) in prow.iter_mut().zip(vrow.iter_mut()).enumerate() {
-                            let (l, v) = crate::sampler::with_sampler!(&mut *s, s => {
-                                self.camera_path(world, x as u32, y as u32, pass, s, ds.as_mut(), &mut st)
-                            });
-                            if crate::math::is_finite(l) {
-                                px.ld += l.as_dvec3();
-                            } else {
-                                bad += 1;
-                            }
-                            if v.is_some() {
-                                r_max = r_max.max(px.r);
-                            }
-                            *vp = v;
-                        }
-                        (st, bad, r_max)
-                    },
-                )
-                .reduce(
-                    || (TraversalStats::default(), 0, 0.0f64),
-                    |mut a, b| {
-                        a.0.add(&b.0);
-                        a.1 += b.1;
-                        a.2 = a.2.max(b.2);
-                        a
-                    },
-                );
-            stats.traversal.add(&st);
-            stats.nonfinite_samples += bad;
+            let cam_pass = phases.camera_pass(pass, &mut pixels, &mut vps);
+            stats.traversal.add(&cam_pass.traversal);
+            stats.nonfinite_samples += cam_pass.nonfinite;
             t_camera += t0.elapsed().as_secs_f64();
 
-            // 2. Photon pass: chunks in parallel, each into its own reused buffer.
             let t1 = Instant::now();
-            let stream = photon_stream(pass);
-            let chunks = m.div_ceil(PHOTON_CHUNK) as usize;
-            traced.resize_with(chunks, Vec::new);
-            let st = traced
-                .par_iter_mut()
-                .with_max_len(1)
-                .enumerate()
-                .map_init(
-                    || emit_sampler.clone(),
-                    |s, (c, out)| {
-                        out.clear();
-                        let mut st = TraversalStats::default();
-                        let c = c as u64;
-                        let (rr, depth) = (self.rr.as_ref(), self.cfg.depth_limit());
-                        // Kept photons go straight into the chunk's buffer, in path order.
-                        let mut keep = Kept { out, keep_first };
-                        crate::sampler::with_sampler!(&mut *s, s => {
-                            for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
-                                trace_path_in(world, s, stream, j, rr, depth, &mut st, &mut keep);
-                            }
-                        });
-                        st
-                    },
-                )
-                .reduce(TraversalStats::default, |mut a, b| {
-                    a.add(&b);
-                    a
-                });
-            photon_rays.add(&st);
+            photon_rays.add(&phases.photon_pass(pass, &mut traced));
             let kept: usize = traced.iter().map(Vec::len).sum();
             kept_total += kept as u64;
             t_photon += t1.elapsed().as_secs_f64();
 
-            // 3. Gather into the visible points and 4. update.
             let t2 = Instant::now();
-            if r_max > 0.0 && kept > 0 {
-                // A little over r_max, so rounding never makes a disc span four cells.
-                grid.build(&traced, (r_max * (1.0 + 1e-4)) as f32);
-                let cap_factor = self.set.p.sppm_density_cap as f64;
-                if pass == 0 && cap_factor > 0.0 {
-                    // First pass: gather, then cap each pixel's count at cap_factor × the
-                    // median count (dense light such as caustics starts with a smaller disc).
-                    found.clear();
-                    vps.par_iter()
-                        .zip(pixels.par_iter())
-                        .with_max_len(GATHER_GRAIN)
-                        .enumerate()
-                        .map(|(i, (vp, px))| {
-                            vp.as_ref().map(|vp| gather_covered(world, &grid, vp, px.r as f32, probes, probe_key(i, pass)))
-                        })
-                        .collect_into_vec(&mut found);
-                    let cap = cap_factor * alpha * median_count(&found);
-                    let cap = if cap > 0.0 { cap } else { f64::INFINITY };
-                    pixels.par_iter_mut().zip(vps.par_iter().zip(found.par_iter())).for_each(|(px, (vp, f))| {
-                        if let (Some(vp), Some((mm, phi))) = (vp, f) {
-                            px.update_capped(*mm, *phi * vp.beta.as_dvec3(), alpha, cap);
-                        }
-                    });
-                } else {
-                    pixels.par_iter_mut().zip(vps.par_iter()).with_max_len(GATHER_GRAIN).enumerate().for_each(|(i, (px, vp))| {
-                        if let Some(vp) = vp {
-                            let (mm, phi) = gather_covered(world, &grid, vp, px.r as f32, probes, probe_key(i, pass));
-                            px.update(mm, phi * vp.beta.as_dvec3(), alpha);
-                        }
-                    });
-                }
+            if cam_pass.r_max > 0.0 && kept > 0 {
+                phases.gather_update(pass, cam_pass.r_max, &traced, &vps, &mut pixels, &mut gather);
             }
             t_gather += t2.elapsed().as_secs_f64();
             pass += 1;
@@ -511,6 +427,188 @@ impl SppmIntegrator {
     }
 }
 
+/// What the camera pass reports besides the visible points.
+struct CameraPass {
+    /// Rays of the camera paths and shadow rays.
+    traversal: TraversalStats,
+    /// Camera samples whose radiance was not finite (dropped).
+    nonfinite: u64,
+    /// Largest radius of a pixel with a visible point (the grid's cell edge; 0 if none).
+    r_max: f64,
+}
+
+/// The gather's buffers, reused from pass to pass.
+#[derive(Default)]
+struct GatherBuffers {
+    grid: PhotonGrid,
+    /// Each pixel's first-pass gather (count, flux), before the density cap.
+    found: Vec<Option<(u64, DVec3)>>,
+}
+
+/// The three phases of an `sppm` pass, with what every pass of one run reads: the
+/// integrator's settings, the world and the samplers.
+struct Phases<'a> {
+    sppm: &'a SppmIntegrator,
+    world: &'a World,
+    /// Camera paths (concrete: the camera pass is compiled per sampler type).
+    cam_sampler: AnySampler,
+    /// Photon paths: every pass traces indices 0 … M − 1 of a stream of its own.
+    emit_sampler: AnySampler,
+    /// Shadow rays at the visible points.
+    direct_sampler: Box<dyn Sampler>,
+    /// Photon paths per pass (M).
+    m: u64,
+    /// Photons' first hits are kept (`sppm_direct = "photons"`).
+    keep_first: bool,
+}
+
+impl<'a> Phases<'a> {
+    fn new(sppm: &'a SppmIntegrator, world: &'a World, m: u64, max_passes: u32) -> Result<Self> {
+        let (cfg, set) = (&sppm.cfg, &sppm.set);
+        let counts = (max_passes != u32::MAX).then_some(max_passes as u64);
+        let n_direct = set.direct.direct_samples.max(1) as u64;
+        Ok(Phases {
+            sppm,
+            world,
+            cam_sampler: crate::sampler::make_any(&cfg.sampler, cfg.seed, counts)?,
+            emit_sampler: crate::sampler::make_any(&cfg.sampler, cfg.seed, Some(m))?,
+            direct_sampler: crate::sampler::make(&set.direct.direct_sampler, cfg.seed, Some(n_direct))?,
+            m,
+            keep_first: set.p.sppm_direct == "photons",
+        })
+    }
+
+    /// Phase 1, the camera pass: every pixel's camera path of pass `pass` (rows in parallel),
+    /// its emitted + direct radiance added to `pixels` and its visible point written
+    /// to `vps` in place.
+    fn camera_pass(&self, pass: u32, pixels: &mut [PixelStats], vps: &mut [Option<VisiblePoint>]) -> CameraPass {
+        let w = self.world.scene.camera.width as usize;
+        // The largest radius is taken while the rows are at hand: radii change only in
+        // the update.
+        let (traversal, nonfinite, r_max) = pixels
+            .par_chunks_mut(w)
+            .zip(vps.par_chunks_mut(w))
+            .with_max_len(1)
+            .enumerate()
+            .map_init(
+                || (self.cam_sampler.clone(), self.direct_sampler.clone_box()),
+                |(s, ds), (y, (prow, vrow))| {
+                    let mut st = TraversalStats::default();
+                    let (mut bad, mut r_max) = (0u64, 0.0f64);
+                    for (x, (px, vp)) in prow.iter_mut().zip(vrow.iter_mut()).enumerate() {
+                        let (l, v) = crate::sampler::with_sampler!(&mut *s, s => {
+                            self.sppm.camera_path(self.world, x as u32, y as u32, pass, s, ds.as_mut(), &mut st)
+                        });
+                        if crate::math::is_finite(l) {
+                            px.ld += l.as_dvec3();
+                        } else {
+                            bad += 1;
+                        }
+                        if v.is_some() {
+                            r_max = r_max.max(px.r);
+                        }
+                        *vp = v;
+                    }
+                    (st, bad, r_max)
+                },
+            )
+            .reduce(
+                || (TraversalStats::default(), 0, 0.0f64),
+                |mut a, b| {
+                    a.0.add(&b.0);
+                    a.1 += b.1;
+                    a.2 = a.2.max(b.2);
+                    a
+                },
+            );
+        CameraPass { traversal, nonfinite, r_max }
+    }
+
+    /// Phase 2, the photon pass: the M photon paths of pass `pass`, in chunks in parallel, each
+    /// chunk's kept photons into its own reused buffer of `traced`, in path order.
+    fn photon_pass(&self, pass: u32, traced: &mut Vec<Vec<GridPhoton>>) -> TraversalStats {
+        let (m, keep_first, world) = (self.m, self.keep_first, self.world);
+        let stream = photon_stream(pass);
+        let chunks = m.div_ceil(PHOTON_CHUNK) as usize;
+        traced.resize_with(chunks, Vec::new);
+        traced
+            .par_iter_mut()
+            .with_max_len(1)
+            .enumerate()
+            .map_init(
+                || self.emit_sampler.clone(),
+                |s, (c, out)| {
+                    out.clear();
+                    let mut st = TraversalStats::default();
+                    let c = c as u64;
+                    let (rr, depth) = (self.sppm.rr.as_ref(), self.sppm.cfg.depth_limit());
+                    // Kept photons go straight into the chunk's buffer, in path order.
+                    let mut keep = Kept { out, keep_first };
+                    crate::sampler::with_sampler!(&mut *s, s => {
+                        for j in c * PHOTON_CHUNK..((c + 1) * PHOTON_CHUNK).min(m) {
+                            trace_path_in(world, s, stream, j, rr, depth, &mut st, &mut keep);
+                        }
+                    });
+                    st
+                },
+            )
+            .reduce(TraversalStats::default, |mut a, b| {
+                a.add(&b);
+                a
+            })
+    }
+
+    /// Phases 3 and 4, gather and update: the photons of `traced` go into the grid (cell edge a
+    /// little over `r_max`), each pixel's visible point gathers those within its
+    /// radius and its statistics take them in. In the first pass, with a density cap,
+    /// each pixel's count is capped at `sppm_density_cap` × the median count.
+    fn gather_update(
+        &self,
+        pass: u32,
+        r_max: f64,
+        traced: &[Vec<GridPhoton>],
+        vps: &[Option<VisiblePoint>],
+        pixels: &mut [PixelStats],
+        buf: &mut GatherBuffers,
+    ) {
+        let (world, probes) = (self.world, self.sppm.set.p.sppm_area_probes);
+        let alpha = self.sppm.set.prog.alpha as f64;
+        let seed = self.sppm.cfg.seed;
+        let probe_key = |pixel: usize| hash_words(&[seed, pixel as u64, pass as u64, 0xA2EA]);
+        let grid = &mut buf.grid;
+        // A little over r_max, so rounding never makes a disc span four cells.
+        grid.build(traced, (r_max * (1.0 + 1e-4)) as f32);
+        let grid = &*grid;
+        let cap_factor = self.sppm.set.p.sppm_density_cap as f64;
+        if pass == 0 && cap_factor > 0.0 {
+            // First pass: gather, then cap each pixel's count at cap_factor × the
+            // median count (dense light such as caustics starts with a smaller disc).
+            let found = &mut buf.found;
+            found.clear();
+            vps.par_iter()
+                .zip(pixels.par_iter())
+                .with_max_len(GATHER_GRAIN)
+                .enumerate()
+                .map(|(i, (vp, px))| vp.as_ref().map(|vp| gather_covered(world, grid, vp, px.r as f32, probes, probe_key(i))))
+                .collect_into_vec(found);
+            let cap = cap_factor * alpha * median_count(found);
+            let cap = if cap > 0.0 { cap } else { f64::INFINITY };
+            pixels.par_iter_mut().zip(vps.par_iter().zip(found.par_iter())).for_each(|(px, (vp, f))| {
+                if let (Some(vp), Some((mm, phi))) = (vp, f) {
+                    px.update_capped(*mm, *phi * vp.beta.as_dvec3(), alpha, cap);
+                }
+            });
+        } else {
+            pixels.par_iter_mut().zip(vps.par_iter()).with_max_len(GATHER_GRAIN).enumerate().for_each(|(i, (px, vp))| {
+                if let Some(vp) = vp {
+                    let (mm, phi) = gather_covered(world, grid, vp, px.r as f32, probes, probe_key(i));
+                    px.update(mm, phi * vp.beta.as_dvec3(), alpha);
+                }
+            });
+        }
+    }
+}
+
 /// The photon pass's sink: keeps a traced photon as a [`GridPhoton`] unless it is a
 /// first hit and first hits are left to the shadow rays.
 struct Kept<'a> {
@@ -531,9 +629,9 @@ impl Extend<RawPhoton> for Kept<'_> {
 /// light it would reach after one more bounce is carried by photons).
 fn direct_light(
     world: &World,
-    it: &crate::world::Interaction,
+    it: &Interaction,
     wo: Vec3,
-    bsdf: &crate::material::Bsdf,
+    bsdf: &Bsdf,
     u_sel: f32,
     u_light: [f32; 2],
     stats: &mut TraversalStats,
@@ -612,7 +710,8 @@ fn disc_inside_triangle(world: &World, vp: &VisiblePoint, r: f32) -> bool {
 /// the same for every photon in the shading hemisphere of wo, so it multiplies the
 /// summed power once; only a glossy lobe is evaluated per photon.
 pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u64, DVec3) {
-    let bsdf = &world.scene.material(vp.tri).bsdf;
+    let bsdf_at = vp.bsdf(world);
+    let bsdf: &Bsdf = &bsdf_at;
     let glossy = bsdf.has_glossy();
     // f ≠ 0 needs wo and wi strictly on one side of the shading normal (and of the
     // geometric one, which `vp.n` already faces).
@@ -650,7 +749,7 @@ pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u
     (m, diffuse * kd + lobe)
 }
 
-super::progressive::progressive_integrator!(SppmIntegrator, "sppm");
+super::progressive_integrator!(SppmIntegrator, "sppm");
 
 #[cfg(test)]
 #[path = "sppm_tests.rs"]
