@@ -313,6 +313,12 @@ impl<P> DiscGrid<P> {
                 let dz = _mm_sub_ps(_mm_loadu_ps(z.as_ptr().add(o)), pz);
                 let dd = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
                 let plane = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, qx), _mm_mul_ps(dy, qy)), _mm_mul_ps(dz, qz));
+                let near = _mm_and_ps(_mm_cmplt_ps(dd, rv), _mm_cmple_ps(_mm_andnot_ps(sign, plane), tv));
+                // Most lanes fail the distance or plane test: the normals (four table
+                // loads) only when one passes; the mask is the same either way.
+                if _mm_movemask_ps(near) == 0 {
+                    return (near, dd);
+                }
                 // The four decoded normals (x, y, z, 0 each), transposed to x, y, z lanes.
                 let row = |j: usize| _mm_load_ps(table[codes[o + j] as usize].0.as_ptr());
                 let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
@@ -320,9 +326,7 @@ impl<P> DiscGrid<P> {
                 let (t2, t3) = (_mm_unpackhi_ps(r0, r1), _mm_unpackhi_ps(r2, r3));
                 let (nx, ny, nz) = (_mm_movelh_ps(t0, t1), _mm_movehl_ps(t1, t0), _mm_movelh_ps(t2, t3));
                 let facing = _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, qx), _mm_mul_ps(ny, qy)), _mm_mul_ps(nz, qz));
-                let ok =
-                    _mm_and_ps(_mm_and_ps(_mm_cmplt_ps(dd, rv), _mm_cmple_ps(_mm_andnot_ps(sign, plane), tv)), _mm_cmpge_ps(facing, cv));
-                (ok, dd)
+                (_mm_and_ps(near, _mm_cmpge_ps(facing, cv)), dd)
             })
         }
     }
