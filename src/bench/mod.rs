@@ -4,6 +4,7 @@
 pub mod accel;
 pub mod embree;
 pub mod knn;
+pub mod photons;
 pub mod progressive;
 pub mod render;
 pub mod scaling;
@@ -20,6 +21,8 @@ pub enum BenchCommand {
     EmbreeCompare(embree::EmbreeArgs),
     /// Photon kd-tree against kiddo: build and k-NN query times on the same points.
     Knn(knn::KnnArgs),
+    /// Time and peak memory of the photon integrator per photon count (one process per count).
+    Photons(photons::PhotonsArgs),
     /// Time per camera sample of `path` and the photon gathers, per sampler.
     Render(render::RenderArgs),
     /// Per-phase speed-up of a photon render from 1 to 2 threads.
@@ -40,6 +43,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Accel(a) => accel::run(&a),
         BenchCommand::EmbreeCompare(a) => embree::run(&a),
         BenchCommand::Knn(a) => knn::run(&a),
+        BenchCommand::Photons(a) => photons::run(&a).map(|_| ()),
         BenchCommand::Render(a) => render::run(&a).map(|_| ()),
         BenchCommand::Scaling(a) => scaling::run(&a),
         BenchCommand::Progressive(a) => progressive::run(&a),

@@ -1,6 +1,6 @@
 //! `photonlab bench render`: time per camera sample of `path` and of the photon
 //! integrator's gathers on the built-in scenes, for each sampler, with rays per second
-//! and samples per second.
+//! and samples per second (also per worker thread).
 //!
 //! Every case (scene × integrator/gather × sampler) is prepared once (accelerator,
 //! photon pass, caches: not timed) and its render pass runs `--reps` times; the
@@ -100,6 +100,8 @@ pub struct Row {
     samples: u64,
     ns_per_sample: f64,
     samples_per_s: f64,
+    /// `samples_per_s` over the worker threads.
+    samples_per_s_per_thread: f64,
     /// Closest-hit plus shadow rays of one pass.
     rays: u64,
     shadow_rays: u64,
@@ -207,6 +209,7 @@ pub fn run(args: &RenderArgs) -> Result<Vec<Row>> {
             samples,
             ns_per_sample: best * 1e9 / samples as f64,
             samples_per_s: samples as f64 / best,
+            samples_per_s_per_thread: samples as f64 / best / threads.max(1) as f64,
             rays: r + s,
             shadow_rays: s,
             rays_per_s: (r + s) as f64 / best,
@@ -228,15 +231,15 @@ pub fn run(args: &RenderArgs) -> Result<Vec<Row>> {
             args.reps.max(1),
             load.map_or("unknown".into(), |l| format!("{l:.1}"))
         );
-        outln!("| scene | integrator | sampler | seconds | ratio | ns/sample | Msamples/s | Mrays/s | rays |");
-        outln!("|---|---|---|---|---|---|---|---|---|");
+        outln!("| scene | integrator | sampler | seconds | ratio | ns/sample | Msamples/s | ksamples/s/thread | Mrays/s | rays |");
+        outln!("|---|---|---|---|---|---|---|---|---|---|");
         for r in &rows {
             let integ = match &r.gather {
                 Some(g) => format!("{} ({g})", r.integrator),
                 None => r.integrator.clone(),
             };
             outln!(
-                "| {} | {} | {} | {:.3} | {:.2} | {:.0} | {:.2} | {:.1} | {} |",
+                "| {} | {} | {} | {:.3} | {:.2} | {:.0} | {:.2} | {:.1} | {:.1} | {} |",
                 r.scene,
                 integ,
                 r.sampler,
@@ -244,6 +247,7 @@ pub fn run(args: &RenderArgs) -> Result<Vec<Row>> {
                 r.ratio,
                 r.ns_per_sample,
                 r.samples_per_s / 1e6,
+                r.samples_per_s_per_thread / 1e3,
                 r.rays_per_s / 1e6,
                 r.rays
             );

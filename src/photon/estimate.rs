@@ -162,15 +162,15 @@ impl PhotonSearch for PhotonGrid {
     }
     #[inline]
     fn power(&self, i: usize) -> Color {
-        self.item(i).power
+        self.item(i).power()
     }
     #[inline]
     fn direction(&self, i: usize) -> Vec3 {
-        self.item(i).dir
+        self.item(i).direction()
     }
     #[inline]
     fn direction_side(&self, i: usize) -> Vec3 {
-        self.item(i).dir
+        self.item(i).direction()
     }
     #[inline]
     fn photon_position(&self, i: usize) -> Vec3 {

@@ -40,7 +40,8 @@ pub struct PrecomputedIrradiance {
 }
 
 impl PrecomputedIrradiance {
-    /// Indexes `points` for lookups.
+    /// Indexes `points` for lookups (normals kept as 16-bit octahedral codes:
+    /// exactly when they were decoded from one, as a photon's are).
     pub fn new(points: Vec<IrradiancePoint>) -> Self {
         let pos: Vec<Vec3> = points.iter().map(|p| p.pos).collect();
         let normals: Vec<Vec3> = points.iter().map(|p| p.normal).collect();
@@ -88,17 +89,22 @@ impl PrecomputedIrradiance {
 /// curved geometry and near edges are not darkened by the part of the disc that
 /// holds no surface.
 pub fn precompute(world: &World, global: &PhotonGrid, stride: usize, prm: &EstimateParams) -> PrecomputedIrradiance {
-    let pts: Vec<IrradiancePoint> = (0..global.len())
+    let stride = stride.max(1);
+    // Point j is photon j·stride of the grid: only the irradiance is collected, and
+    // the positions and normal codes are read from the grid as the points' grid is built.
+    let irradiance: Vec<Color> = (0..global.len())
         .into_par_iter()
-        .step_by(stride.max(1))
+        .step_by(stride)
         .map(|i| {
             let (n, pos) = (global.normal(i), global.position(i));
             let mut stats = TraversalStats::default();
-            let e = with_heap(|h| estimate::irradiance_covered(world, global, pos, n, prm, h, &mut stats));
-            IrradiancePoint { pos, normal: n, irradiance: e }
+            with_heap(|h| estimate::irradiance_covered(world, global, pos, n, prm, h, &mut stats))
         })
         .collect();
-    PrecomputedIrradiance::new(pts)
+    let m = irradiance.len();
+    let coord = |a: usize| (0..m).into_par_iter().map(|j| global.position(j * stride)[a]).collect();
+    let normals = (0..m).into_par_iter().map(|j| global.normal_code(j * stride)).collect();
+    PrecomputedIrradiance { grid: DiscGrid::build_soa(coord(0), coord(1), coord(2), normals, irradiance, CELL_SPACINGS, false) }
 }
 
 /// [`PrecomputedIrradiance::lookup`], free-standing.

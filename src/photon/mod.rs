@@ -100,15 +100,41 @@ pub struct MapTrees {
 
 /// The stored direct photons, then the indirect ones, each in path order, normalised
 /// by the paths emitted for them: what the global grid ([`global_grid`]) and, on
-/// request, the two maps' kd-trees are built from.
+/// request, the two maps' kd-trees are built from. Coordinates are kept apart
+/// (12 bytes a photon) beside the 8-byte records; [`global_grid`] moves them into
+/// the grid, after which only the counts stay here (the kd-trees are then rebuilt
+/// from the grid, [`PhotonMaps::ensure_trees_with`]).
 #[derive(Clone, Debug, Default)]
 pub struct GlobalPhotons {
-    /// Positions.
-    pub pos: Vec<Vec3>,
+    /// Coordinates (empty once moved into the global grid).
+    pub x: Vec<f32>,
+    /// y coordinates.
+    pub y: Vec<f32>,
+    /// z coordinates.
+    pub z: Vec<f32>,
     /// Photons.
     pub photons: Vec<Photon>,
     /// How many are direct (the rest are indirect).
     pub direct: usize,
+    /// How many there are (also after the move).
+    pub len: usize,
+}
+
+impl GlobalPhotons {
+    /// Position of photon `i` (while held here).
+    pub fn position(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+
+    /// True once the photons were moved into the global grid.
+    pub fn moved(&self) -> bool {
+        self.photons.len() < self.len
+    }
+
+    /// Bytes held.
+    pub fn memory_bytes(&self) -> usize {
+        self.photons.len() * (12 + std::mem::size_of::<Photon>())
+    }
 }
 
 /// The photon maps and the counts that normalise them.
@@ -142,7 +168,7 @@ pub struct PhotonMaps {
 impl PhotonMaps {
     /// Photons stored in the direct + indirect maps.
     pub fn global_len(&self) -> usize {
-        self.global.photons.len()
+        self.global.len
     }
 
     /// Photons stored in the direct map.
@@ -152,16 +178,12 @@ impl PhotonMaps {
 
     /// Photons stored in the indirect map.
     pub fn indirect_len(&self) -> usize {
-        self.global.photons.len() - self.global.direct
+        self.global.len - self.global.direct
     }
 }
 
-/// Total area of the distinct triangles the photons landed on.
-fn lit_area(world: &World, photons: &[RawPhoton]) -> f64 {
-    let mut hit = vec![false; world.scene.triangles.len()];
-    for p in photons {
-        hit[p.tri as usize] = true;
-    }
+/// Total area of the distinct triangles marked in `hit`.
+fn lit_area(world: &World, hit: &[bool]) -> f64 {
     hit.iter()
         .enumerate()
         .filter(|(_, h)| **h)
@@ -173,16 +195,27 @@ fn lit_area(world: &World, photons: &[RawPhoton]) -> f64 {
 }
 
 /// Every stored photon (direct, indirect, caustic) at its stored position, in one
-/// grid searched by estimates of `k` photons at final-gather hits.
-pub fn global_grid(maps: &PhotonMaps, k: usize) -> nearest::PhotonGrid {
-    let (g, c) = (&maps.global, &maps.caustic);
+/// grid searched by estimates of `k` photons at final-gather hits. The direct and
+/// indirect photons move into the grid (`maps.global` keeps their counts; its
+/// kd-trees are rebuilt from the grid when asked for later).
+pub fn global_grid(maps: &mut PhotonMaps, k: usize) -> nearest::PhotonGrid {
+    let g = &mut maps.global;
+    let c = &maps.caustic;
     let total = g.photons.len() + c.len();
-    let (mut pos, mut photons) = (Vec::with_capacity(total), Vec::with_capacity(total));
-    pos.extend_from_slice(&g.pos);
-    photons.extend_from_slice(&g.photons);
-    pos.par_extend((0..c.len()).into_par_iter().map(|i| c.position(i)));
+    let (mut x, mut y, mut z, mut photons) =
+        (std::mem::take(&mut g.x), std::mem::take(&mut g.y), std::mem::take(&mut g.z), std::mem::take(&mut g.photons));
+    for v in [&mut x, &mut y, &mut z] {
+        v.reserve_exact(total - v.len());
+    }
+    photons.reserve_exact(total - photons.len());
+    for i in 0..c.len() {
+        let p = c.position(i);
+        x.push(p.x);
+        y.push(p.y);
+        z.push(p.z);
+    }
     photons.extend_from_slice(&c.points);
-    nearest::PhotonGrid::build_photons(&pos, &photons, k)
+    nearest::PhotonGrid::build_photons_soa(x, y, z, photons, k)
 }
 
 /// The radius that holds `k` photons where `stored` photons spread evenly over
@@ -206,6 +239,55 @@ pub struct RawPhoton {
     pub normal: Vec3,
     /// Triangle it landed on.
     pub tri: u32,
+}
+
+/// A photon as the pass keeps it until the emitted count is known (28 bytes):
+/// direction and normal already encoded ([`record::encode_dir`]), the power not yet
+/// normalised.
+#[derive(Clone, Copy, Debug)]
+struct PassPhoton {
+    pos: Vec3,
+    power: Color,
+    dir: u16,
+    normal: u16,
+}
+
+impl PassPhoton {
+    fn new(r: &RawPhoton) -> Self {
+        PassPhoton { pos: r.pos, power: r.power, dir: record::encode_dir(r.dir), normal: record::encode_dir(r.normal) }
+    }
+}
+
+/// Stored photons of one map in chunks of [`PASS_CHUNK`] (no vector ever grows, so
+/// no reallocation doubles the storage), and the triangles they landed on.
+struct PassMap {
+    chunks: Vec<Vec<PassPhoton>>,
+    len: usize,
+    hit: Vec<bool>,
+}
+
+/// Photons per chunk of a [`PassMap`]: 56 MiB, above the size from which the
+/// allocator maps memory of its own, so each chunk goes back to the system as soon
+/// as it is normalised (smaller blocks would stay in the heap, resident beside the
+/// normalised copy). Untouched capacity is not resident.
+const PASS_CHUNK: usize = 1 << 21;
+
+impl PassMap {
+    fn new(triangles: usize) -> Self {
+        PassMap { chunks: Vec::new(), len: 0, hit: vec![false; triangles] }
+    }
+    fn push(&mut self, r: &RawPhoton) {
+        self.hit[r.tri as usize] = true;
+        self.len += 1;
+        match self.chunks.last_mut() {
+            Some(c) if c.len() < PASS_CHUNK => c.push(PassPhoton::new(r)),
+            _ => {
+                let mut c = Vec::with_capacity(PASS_CHUNK);
+                c.push(PassPhoton::new(r));
+                self.chunks.push(c);
+            }
+        }
+    }
 }
 
 /// Emission sampler dimensions: light choice, position (2), direction (2); then
@@ -314,8 +396,8 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
         warnings.push("the scene has no specular (mirror/glass) surface: the caustic map stays empty".into());
         want_caustic = 0;
     }
-    let mut global: Vec<RawPhoton> = Vec::new();
-    let mut caustic: Vec<RawPhoton> = Vec::new();
+    let tris = world.scene.triangles.len();
+    let (mut direct, mut indirect, mut caustic) = (PassMap::new(tris), PassMap::new(tris), PassMap::new(tris));
     let (mut global_done, mut caustic_done) = (s.global_photons == 0, want_caustic == 0);
     let (mut n_global, mut n_caustic) = (0u64, 0u64);
     let limit = s.fixed_emit.unwrap_or(s.max_emitted);
@@ -340,19 +422,20 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
         for (j, (photons, st)) in results.into_iter().enumerate() {
             rays.add(&st);
             let path = emitted + j as u64;
-            for raw in photons {
+            for raw in &photons {
                 match raw.kind {
                     MapKind::Caustic if !caustic_done => caustic.push(raw),
-                    MapKind::Direct | MapKind::Indirect if !global_done => global.push(raw),
+                    MapKind::Direct if !global_done => direct.push(raw),
+                    MapKind::Indirect if !global_done => indirect.push(raw),
                     _ => {}
                 }
             }
             if s.fixed_emit.is_none() {
-                if !global_done && global.len() >= s.global_photons {
+                if !global_done && direct.len + indirect.len >= s.global_photons {
                     global_done = true;
                     n_global = path + 1;
                 }
-                if !caustic_done && caustic.len() >= want_caustic {
+                if !caustic_done && caustic.len >= want_caustic {
                     caustic_done = true;
                     n_caustic = path + 1;
                 }
@@ -362,7 +445,7 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
         pb.set_position(emitted);
         // A caustic map that stays empty long after the global one filled cannot be
         // filled (specular surfaces the lights do not reach).
-        if s.fixed_emit.is_none() && global_done && !caustic_done && caustic.is_empty() && emitted >= 4 * n_global.max(BATCH) {
+        if s.fixed_emit.is_none() && global_done && !caustic_done && caustic.len == 0 && emitted >= 4 * n_global.max(BATCH) {
             warnings
                 .push(format!("no photon reached a diffuse surface via a specular one after {emitted} paths: the caustic map stays empty"));
             caustic_done = true;
@@ -375,39 +458,60 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
             warnings.push(format!(
                 "emission cap of {} paths reached with {} of {} global photons stored",
                 s.max_emitted,
-                global.len(),
+                direct.len + indirect.len,
                 s.global_photons
             ));
         }
     }
     if !caustic_done || n_caustic == 0 {
         n_caustic = emitted;
-        if s.fixed_emit.is_none() && want_caustic > 0 && caustic.len() < want_caustic && !caustic.is_empty() {
+        if s.fixed_emit.is_none() && want_caustic > 0 && caustic.len < want_caustic && caustic.len > 0 {
             warnings.push(format!(
                 "emission cap of {} paths reached with {} of {} caustic photons stored",
-                s.max_emitted,
-                caustic.len(),
-                want_caustic
+                s.max_emitted, caustic.len, want_caustic
             ));
         }
     }
     let t_build = std::time::Instant::now();
     let inv = |n: u64| 1.0 / n.max(1) as f32;
-    let normalised = |v: &[RawPhoton], kind: Option<MapKind>, inv: f32| -> (Vec<Vec3>, Vec<Photon>) {
-        // Parallel and order-preserving: the same maps for any thread count.
-        v.par_iter().filter(|r| kind.is_none_or(|k| r.kind == k)).map(|r| (r.pos, Photon::new(r.power * inv, r.dir, r.normal))).unzip()
+    let mut hit_global = std::mem::take(&mut direct.hit);
+    for (h, i) in hit_global.iter_mut().zip(&indirect.hit) {
+        *h |= *i;
+    }
+    let (lit_area_global, lit_area_caustic) = (lit_area(world, &hit_global), lit_area(world, &caustic.hit));
+    drop(hit_global);
+    // The global photons: direct then indirect, in path order, chunk by chunk (each
+    // chunk freed once normalised). Room for the caustic photons too, which the
+    // global grid appends.
+    let direct_count = direct.len;
+    let (n, room) = (direct.len + indirect.len, direct.len + indirect.len + caustic.len);
+    let mut global = GlobalPhotons {
+        x: Vec::with_capacity(room),
+        y: Vec::with_capacity(room),
+        z: Vec::with_capacity(room),
+        photons: Vec::with_capacity(room),
+        direct: direct_count,
+        len: n,
     };
-    let ((mut pos, mut photons), ((ip, iv), (cp, cv))) = rayon::join(
-        || normalised(&global, Some(MapKind::Direct), inv(n_global)),
-        || rayon::join(|| normalised(&global, Some(MapKind::Indirect), inv(n_global)), || normalised(&caustic, None, inv(n_caustic))),
-    );
-    let direct_count = pos.len();
-    pos.extend_from_slice(&ip);
-    photons.extend_from_slice(&iv);
-    let caustic_t = KdTree::build_with(&cp, cv);
-    let (lit_area_global, lit_area_caustic) = (lit_area(world, &global), lit_area(world, &caustic));
+    let inv_global = inv(n_global);
+    for batch in direct.chunks.drain(..).chain(indirect.chunks.drain(..)) {
+        normalise_into(&batch, inv_global, &mut global);
+    }
+    let c = caustic.len;
+    let mut caustic_photons = GlobalPhotons {
+        x: Vec::with_capacity(c),
+        y: Vec::with_capacity(c),
+        z: Vec::with_capacity(c),
+        photons: Vec::with_capacity(c),
+        ..Default::default()
+    };
+    for batch in caustic.chunks.drain(..) {
+        normalise_into(&batch, inv(n_caustic), &mut caustic_photons);
+    }
+    let cp: Vec<Vec3> = (0..caustic_photons.photons.len()).map(|i| caustic_photons.position(i)).collect();
+    let caustic_t = KdTree::build_with(&cp, caustic_photons.photons);
     let mut maps = PhotonMaps {
-        global: GlobalPhotons { pos, photons, direct: direct_count },
+        global,
         direct: None,
         indirect: None,
         caustic: caustic_t,
@@ -425,16 +529,65 @@ pub fn build_maps(world: &World, sampler: &dyn Sampler, rr: &dyn RussianRoulette
     maps
 }
 
+/// Appends `batch` normalised by `inv` to `out` (records encoded in parallel, in
+/// order: the same photons for any thread count).
+fn normalise_into(batch: &[PassPhoton], inv: f32, out: &mut GlobalPhotons) {
+    out.photons.par_extend(batch.par_iter().map(|r| Photon::from_codes(r.power * inv, r.dir, r.normal)));
+    for r in batch {
+        out.x.push(r.pos.x);
+        out.y.push(r.pos.y);
+        out.z.push(r.pos.z);
+    }
+}
+
 impl PhotonMaps {
     /// Builds the kd-trees of the direct and indirect maps that `want` asks for and
-    /// that do not exist yet (the photon integrator calls it again when an output
-    /// that searches them is chosen after the pre-pass).
+    /// that do not exist yet, from the global photons held here (before
+    /// [`global_grid`] moved them).
     pub fn ensure_trees(&mut self, want: MapTrees) {
+        self.ensure_trees_from(want, None);
+    }
+
+    /// [`PhotonMaps::ensure_trees`], reading the photons from `grid` (the global grid
+    /// built from these maps) once they were moved into it (the photon integrator
+    /// calls it again when an output that searches the trees is chosen after the
+    /// pre-pass). The trees are built from the same positions and records in the
+    /// same order either way, so they are the same trees.
+    pub fn ensure_trees_with(&mut self, want: MapTrees, grid: &nearest::PhotonGrid) {
+        self.ensure_trees_from(want, Some(grid));
+    }
+
+    fn ensure_trees_from(&mut self, want: MapTrees, grid: Option<&nearest::PhotonGrid>) {
+        let (need_d, need_i) = (want.direct && self.direct.is_none(), want.indirect && self.indirect.is_none());
+        if !need_d && !need_i {
+            return;
+        }
         let g = &self.global;
-        let (d, n) = (g.direct, g.photons.len());
-        let tree = |need: bool, r: std::ops::Range<usize>| need.then(|| KdTree::build_with(&g.pos[r.clone()], g.photons[r].to_vec()));
-        let (direct, indirect) =
-            rayon::join(|| tree(want.direct && self.direct.is_none(), 0..d), || tree(want.indirect && self.indirect.is_none(), d..n));
+        let (d, n) = (g.direct, g.len);
+        // Where each global photon is: here, or at its place in the grid.
+        let at: Option<Vec<u32>> = g.moved().then(|| {
+            let grid = grid.expect("the global photons moved into a grid: pass it to ensure_trees_with");
+            let mut at = vec![u32::MAX; n];
+            for i in 0..grid.len() {
+                if let Some(src) = grid.source(i).filter(|&src| src < n) {
+                    at[src] = i as u32;
+                }
+            }
+            at
+        });
+        let photon = |i: usize| -> (Vec3, Photon) {
+            match (&at, grid) {
+                (Some(at), Some(grid)) => (grid.position(at[i] as usize), *grid.item(at[i] as usize)),
+                _ => (g.position(i), g.photons[i]),
+            }
+        };
+        let tree = |need: bool, r: std::ops::Range<usize>| {
+            need.then(|| {
+                let (pos, ph): (Vec<Vec3>, Vec<Photon>) = r.map(photon).unzip();
+                KdTree::build_with(&pos, ph)
+            })
+        };
+        let (direct, indirect) = rayon::join(|| tree(need_d, 0..d), || tree(need_i, d..n));
         self.direct = self.direct.take().or(direct);
         self.indirect = self.indirect.take().or(indirect);
     }
@@ -496,6 +649,52 @@ mod tests {
         let caustic = first.iter().filter(|f| f.0 == MapKind::Caustic).count() as f64 / first.len() as f64;
         assert!((caustic - 0.5).abs() < 0.05, "caustic fraction {caustic}");
         assert!(!later.is_empty() && later.iter().all(|&k| k == MapKind::Indirect));
+    }
+
+    /// The photon pass on `cornell-glass` (direct, indirect and caustic photons).
+    fn glass_maps(trees: MapTrees) -> PhotonMaps {
+        let scene = crate::scene::builtin::builtin("cornell-glass").unwrap();
+        let accel = make_accel("bvh", &scene.triangles).unwrap();
+        let world = World::new(scene, accel).unwrap();
+        let rr = make_rr("albedo").unwrap();
+        let sampler = make_sampler("halton", 3, None).unwrap();
+        let s = PhotonPassSettings {
+            global_photons: 6000,
+            caustic_photons: 2000,
+            fixed_emit: None,
+            max_emitted: 1_000_000,
+            max_depth: 32,
+            trees,
+        };
+        build_maps(&world, sampler.as_ref(), rr.as_ref(), &s, true)
+    }
+
+    /// The kd-trees of the direct and indirect maps are the same when built from
+    /// the photons held by the maps and, after they moved into the global grid, from
+    /// the grid; the grid holds every photon once, at its stored position.
+    #[test]
+    fn trees_from_the_grid_equal_the_trees_from_the_pass() {
+        let both = MapTrees { direct: true, indirect: true };
+        let before = glass_maps(both);
+        let mut maps = glass_maps(MapTrees::default());
+        assert!(maps.direct.is_none() && maps.indirect.is_none());
+        assert!(maps.direct_len() > 1000 && maps.indirect_len() > 1000 && maps.caustic.len() >= 2000);
+        let held: Vec<(Vec3, Photon)> = (0..maps.global_len()).map(|i| (maps.global.position(i), maps.global.photons[i])).collect();
+        let grid = global_grid(&mut maps, 50);
+        assert!(maps.global.moved() && maps.global.memory_bytes() == 0);
+        assert_eq!(grid.len(), maps.global_len() + maps.caustic.len());
+        for i in 0..grid.len() {
+            let src = grid.source(i).unwrap();
+            let want =
+                if src < held.len() { held[src] } else { (maps.caustic.position(src - held.len()), maps.caustic.points[src - held.len()]) };
+            assert_eq!((grid.position(i), *grid.item(i)), want);
+        }
+        maps.ensure_trees_with(both, &grid);
+        for (a, b) in [(&before.direct, &maps.direct), (&before.indirect, &maps.indirect)] {
+            let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
+            assert_eq!(a.points, b.points);
+            assert!((0..a.len()).all(|i| a.position(i) == b.position(i)));
+        }
     }
 
     #[test]

@@ -19,13 +19,14 @@
 //! grid is capped at 4 cells per point.
 
 use glam::Vec3;
+use rayon::prelude::*;
 use starts::CellStarts;
 
 mod disc;
 mod photons;
 mod starts;
 pub use disc::DiscGrid;
-pub use photons::{DecodedPhoton, PhotonGrid};
+pub use photons::PhotonGrid;
 
 /// Points of a grid built over at most this many cells per point (plus a constant).
 const CELLS_PER_POINT: usize = 4;
@@ -99,14 +100,7 @@ impl<T: Copy> PointGrid<T> {
     /// distance.
     fn build_spaced(positions: &[Vec3], items: Vec<T>, spacings: f32) -> Self {
         let n = positions.len().min(items.len());
-        // A first grid with about one cell per point measures the spacing.
-        let (lo, hi) = bounds(&positions[..n]);
-        let ext = (hi - lo).max(Vec3::splat(0.0));
-        let vol_cell = (ext.x.max(1e-30) * ext.y.max(1e-30) * ext.z.max(1e-30) / n.max(1) as f32).cbrt();
-        let rough_cell = if vol_cell.is_finite() && vol_cell > 0.0 { vol_cell } else { ext.max_element().max(1e-6) };
-        let rough = Self::with_cell(&positions[..n], items[..n].to_vec(), rough_cell);
-        let spacing = rough.median_spacing();
-        let cell = if spacing > 0.0 && spacing.is_finite() { spacings * spacing } else { rough_cell };
+        let cell = spaced_cell(n, &|i| positions[i], spacings);
         Self::with_cell(&positions[..n], items[..n].to_vec(), cell)
     }
 
@@ -114,10 +108,37 @@ impl<T: Copy> PointGrid<T> {
     /// [`CELLS_PER_POINT`] cells per point).
     pub fn with_cell(positions: &[Vec3], items: Vec<T>, cell: f32) -> Self {
         let n = positions.len().min(items.len());
+        let (mut g, order) = Self::frame(n, &|i| positions[i], cell);
+        g.entries = order.iter().map(|&i| GridEntry { pos: positions[i as usize], item: items[i as usize] }).collect();
+        g.order = order;
+        g
+    }
+}
+
+/// The cell side of a grid over `n` points at `pos(i)` with cells `spacings` × the
+/// points' median nearest-neighbour distance (measured on a first grid of about one
+/// cell per point; its positions, 12 bytes a point, are the build's largest
+/// temporary).
+pub(super) fn spaced_cell(n: usize, pos: &(impl Fn(usize) -> Vec3 + Sync), spacings: f32) -> f32 {
+    let (lo, hi) = bounds(n, pos);
+    let ext = (hi - lo).max(Vec3::splat(0.0));
+    let vol_cell = (ext.x.max(1e-30) * ext.y.max(1e-30) * ext.z.max(1e-30) / n.max(1) as f32).cbrt();
+    let rough_cell = if vol_cell.is_finite() && vol_cell > 0.0 { vol_cell } else { ext.max_element().max(1e-6) };
+    let (rough, order) = PointGrid::<()>::frame(n, pos, rough_cell);
+    let spacing = rough.median_spacing_by(&order, pos);
+    if spacing > 0.0 && spacing.is_finite() { spacings * spacing } else { rough_cell }
+}
+
+impl<T> PointGrid<T> {
+    /// The grid's frame (bounds, cells of side `cell` — enlarged if the grid would
+    /// exceed [`CELLS_PER_POINT`] cells per point — and cell starts) over `n` points
+    /// at `pos(i)`, without entries, and the points in grid order (input order within
+    /// a cell): a counting sort, linear in the points.
+    pub(super) fn frame(n: usize, pos: &(impl Fn(usize) -> Vec3 + Sync), cell: f32) -> (Self, Vec<u32>) {
         if n == 0 {
-            return Self::default();
+            return (Self::default(), Vec::new());
         }
-        let (lo, hi) = bounds(&positions[..n]);
+        let (lo, hi) = bounds(n, pos);
         let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ZERO) };
         let ext = hi - lo;
         let max_cells = (CELLS_PER_POINT * n + 1024).min(1 << 26) as f64;
@@ -130,22 +151,22 @@ impl<T: Copy> PointGrid<T> {
             dims = count(cell);
         }
         let tiles = tiles_of(dims);
-        let mut g = PointGrid {
+        let mut g = PointGrid::<()> {
             origin: lo,
             cell,
             inv_cell: 1.0 / cell,
             dims,
             tiles,
             start: CellStarts::default(),
-            entries: Vec::with_capacity(n),
+            entries: Vec::new(),
             order: Vec::new(),
         };
-        let index: Vec<usize> = positions[..n].iter().map(|&p| g.cell_index(g.cell_of(p))).collect();
+        // At most 2^26 cells (`max_cells`): a cell number fits in 32 bits.
+        let index: Vec<u32> = (0..n).into_par_iter().map(|i| g.cell_index(g.cell_of(pos(i))) as u32).collect();
         let (start, order) = CellStarts::build(&index, tiles.iter().product::<i64>() as usize);
-        g.entries.extend(order.iter().map(|&i| GridEntry { pos: positions[i as usize], item: items[i as usize] }));
-        g.order = order;
         g.start = start;
-        g
+        let PointGrid { origin, cell, inv_cell, dims, tiles, start, .. } = g;
+        (PointGrid { origin, cell, inv_cell, dims, tiles, start, entries: Vec::new(), order: Vec::new() }, order)
     }
 }
 
@@ -355,8 +376,61 @@ impl<T> PointGrid<T> {
         }
     }
 
+    /// [`PointGrid::median_spacing`] of a grid without entries whose points, in grid
+    /// order, are at `pos(order[i])` (the same sample, the same distances).
+    fn median_spacing_by(&self, order: &[u32], pos: &(impl Fn(usize) -> Vec3 + Sync)) -> f32 {
+        let n = order.len();
+        if n < 2 {
+            return 0.0;
+        }
+        let step = (n / SPACING_SAMPLE).max(1);
+        let far = (self.dims[0].max(self.dims[1]).max(self.dims[2]) as f32 + 1.0) * self.cell;
+        let max_r2 = far * far * 3.0;
+        let mut d: Vec<f32> = (0..n)
+            .step_by(step)
+            .filter_map(|i| {
+                // `nearest` with the filter "another position", reading positions
+                // through `order`: the exact nearest distance.
+                let p = pos(order[i] as usize);
+                if !p.is_finite() {
+                    return None;
+                }
+                let max_r = max_r2.sqrt();
+                let (mut best, mut found) = (max_r2, false);
+                let mut rho = self.first_rho(max_r);
+                let mut done = None;
+                loop {
+                    self.scan_box(p, rho, &mut done, &mut |rows| {
+                        for &(a, b) in rows {
+                            for &j in &order[a as usize..b as usize] {
+                                let q = pos(j as usize);
+                                let d2 = (q - p).length_squared();
+                                if d2 < best && q != p {
+                                    best = d2;
+                                    found = true;
+                                }
+                            }
+                        }
+                    });
+                    if (found && best <= rho * rho) || rho >= max_r {
+                        break;
+                    }
+                    rho = (2.0 * rho).min(max_r);
+                }
+                found.then(|| best.sqrt())
+            })
+            .collect();
+        if d.is_empty() {
+            return 0.0;
+        }
+        let m = d.len() / 2;
+        *d.select_nth_unstable_by(m, f32::total_cmp).1
+    }
+
     /// Median distance from a point to its nearest other point, over a sample
-    /// (0 when fewer than two distinct points).
+    /// (0 when fewer than two distinct points): what [`PointGrid::median_spacing_by`]
+    /// computes without entries (its test's reference).
+    #[cfg(test)]
     fn median_spacing(&self) -> f32 {
         let n = self.len();
         if n < 2 {
@@ -399,9 +473,10 @@ pub(crate) fn prefetch<U>(x: &U) {
     let _ = x;
 }
 
-/// Bounds of the finite positions (lo > hi when there are none).
-fn bounds(positions: &[Vec3]) -> (Vec3, Vec3) {
-    positions.iter().filter(|p| p.is_finite()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+/// Bounds of the finite positions `pos(0..n)` (lo > hi when there are none).
+fn bounds(n: usize, pos: &(impl Fn(usize) -> Vec3 + Sync)) -> (Vec3, Vec3) {
+    // In order (the sign of a zero bound depends on it).
+    (0..n).map(pos).filter(|p| p.is_finite()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
 }
 
 #[cfg(test)]
@@ -497,6 +572,20 @@ mod tests {
             }
         }
         assert!(hits > 2000, "{hits}");
+    }
+
+    #[test]
+    fn spacing_without_entries_is_the_spacing() {
+        let (mut pos, _) = points(20000);
+        pos.push(Vec3::NAN);
+        pos.extend_from_within(..50);
+        for cell in [0.01f32, 0.05, 0.3] {
+            let g = PointGrid::with_cell(&pos, vec![(); pos.len()], cell);
+            let (frame, order) = PointGrid::<()>::frame(pos.len(), &|i| pos[i], cell);
+            assert_eq!(order, g.order);
+            let (a, b) = (g.median_spacing(), frame.median_spacing_by(&order, &|i| pos[i]));
+            assert!(a > 0.0 && a.to_bits() == b.to_bits(), "cell {cell}: {a} vs {b}");
+        }
     }
 
     #[test]

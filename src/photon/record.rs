@@ -118,14 +118,52 @@ fn oct_code(c: u16) -> Vec2 {
     Vec2::new(DEQUANT8[(c & 0xFF) as usize], DEQUANT8[(c >> 8) as usize])
 }
 
+/// One decoded octahedral code, padded to 16 bytes so that four load into an SSE
+/// register each.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+pub struct DecodedDir(pub [f32; 4]);
+
+/// Every 16-bit octahedral code decoded ([`oct_decode`] of [`oct_code`]; 1 MiB,
+/// built on first use): directions and normals are read tens of millions of times
+/// per render, and a lookup returns exactly the bits the decode computes.
+pub fn dir_table() -> &'static [DecodedDir] {
+    static TABLE: std::sync::LazyLock<Vec<DecodedDir>> = std::sync::LazyLock::new(|| {
+        (0..=u16::MAX)
+            .map(|c| {
+                let v = oct_decode(oct_code(c));
+                DecodedDir([v.x, v.y, v.z, 0.0])
+            })
+            .collect()
+    });
+    &TABLE
+}
+
+/// The direction of a 16-bit octahedral code, from [`dir_table`].
+#[inline(always)]
+pub fn decode_dir(code: u16) -> Vec3 {
+    let [x, y, z, _] = dir_table()[code as usize].0;
+    Vec3::new(x, y, z)
+}
+
+/// The 16-bit octahedral code (8 + 8 bits) of a unit vector.
+#[inline]
+pub fn encode_dir(v: Vec3) -> u16 {
+    let e = oct_encode(v);
+    quant(e.x, 8) | (quant(e.y, 8) << 8)
+}
+
 impl Photon {
     /// Packs a photon (its position goes to the kd-tree). `dir` points back towards
     /// where the photon came from; `normal` is the surface normal on the side the
     /// photon arrived from.
     pub fn new(power: Color, dir: Vec3, normal: Vec3) -> Self {
-        let d = oct_encode(dir);
-        let n = oct_encode(normal);
-        Photon { rgbe: encode_rgbe(power), dir: quant(d.x, 8) | (quant(d.y, 8) << 8), normal: quant(n.x, 8) | (quant(n.y, 8) << 8) }
+        Self::from_codes(power, encode_dir(dir), encode_dir(normal))
+    }
+    /// Packs a photon whose direction and normal are already encoded ([`encode_dir`]).
+    #[inline]
+    pub fn from_codes(power: Color, dir: u16, normal: u16) -> Self {
+        Photon { rgbe: encode_rgbe(power), dir, normal }
     }
     /// Power (flux).
     #[inline]
@@ -139,7 +177,7 @@ impl Photon {
     /// Unit incoming direction (towards the photon's origin).
     #[inline]
     pub fn direction(&self) -> Vec3 {
-        oct_decode(oct_code(self.dir))
+        decode_dir(self.dir)
     }
     /// [`Photon::direction`] before normalisation (a positive multiple of it), for
     /// tests that need only signs.
@@ -150,7 +188,12 @@ impl Photon {
     /// Unit surface normal on the side the photon arrived from.
     #[inline]
     pub fn normal(&self) -> Vec3 {
-        oct_decode(oct_code(self.normal))
+        decode_dir(self.normal)
+    }
+    /// The normal's code ([`encode_dir`]).
+    #[inline]
+    pub fn normal_code(&self) -> u16 {
+        self.normal
     }
 }
 
@@ -163,6 +206,16 @@ mod tests {
         for q in 0..=u16::MAX {
             assert_eq!(oct_code(q), Vec2::new(dequant(q & 0xFF, 8), dequant(q >> 8, 8)));
         }
+    }
+
+    #[test]
+    fn dir_table_is_the_decode() {
+        for c in 0..=u16::MAX {
+            let want = oct_decode(oct_code(c));
+            assert_eq!(decode_dir(c).to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "code {c}");
+        }
+        let v = Vec3::new(0.3, -0.8, 0.2).normalize();
+        assert_eq!(encode_dir(v), Photon::new(Color::ONE, v, v).normal_code());
     }
 
     #[test]

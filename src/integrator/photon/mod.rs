@@ -322,7 +322,7 @@ impl Integrator for PhotonIntegrator {
             max_depth: cfg.depth_limit(),
             trees: self.map_trees(),
         };
-        let maps = build_maps(world, emit_sampler.as_ref(), self.rr.as_ref(), &settings, self.quiet);
+        let mut maps = build_maps(world, emit_sampler.as_ref(), self.rr.as_ref(), &settings, self.quiet);
         for w in &maps.warnings {
             eprintln!("warning: {w}");
         }
@@ -344,7 +344,7 @@ impl Integrator for PhotonIntegrator {
         self.times.insert("caustic_max_radius".into(), caustic_radius as f64);
         let t1 = Instant::now();
         let t_global = Instant::now();
-        let global = photon::global_grid(&maps, p.k as usize);
+        let global = photon::global_grid(&mut maps, p.k as usize);
         self.times.insert("kdtree_build_s".into(), maps.build_s + t_global.elapsed().as_secs_f64());
         let k_of = |k: u32| if bounded { photon::within::ALL } else { k as usize };
         let est_global = EstimateParams::new(k_of(p.k), max_radius, filter, p.disc);
@@ -393,7 +393,7 @@ impl Integrator for PhotonIntegrator {
         self.output = Output::parse(aov)?;
         let trees = self.map_trees();
         if let Some(ctx) = &mut self.ctx {
-            ctx.maps.ensure_trees(trees);
+            ctx.maps.ensure_trees_with(trees, &ctx.global);
         }
         Ok(())
     }
@@ -411,8 +411,7 @@ impl Integrator for PhotonIntegrator {
             m.insert("photons_caustic".into(), c.maps.caustic.len() as f64);
             m.insert("photon_rays".into(), c.maps.rays.total_rays() as f64);
             let trees = [&c.maps.direct, &c.maps.indirect].iter().filter_map(|t| t.as_ref()).map(|t| t.memory_bytes()).sum::<usize>();
-            let global = c.maps.global_len() * (std::mem::size_of::<Vec3>() + std::mem::size_of::<crate::photon::record::Photon>());
-            let bytes = trees + global + c.maps.caustic.memory_bytes();
+            let bytes = trees + c.maps.global.memory_bytes() + c.maps.caustic.memory_bytes();
             let stored = c.maps.global_len() + c.maps.caustic.len();
             m.insert("photon_bytes".into(), bytes as f64 / stored.max(1) as f64);
             m.insert("photon_map_bytes".into(), (bytes + c.global.memory_bytes()) as f64);

@@ -11,48 +11,74 @@
 //! same points pass).
 
 use super::PointGrid;
+use crate::photon::record::{decode_dir, dir_table, encode_dir};
 use glam::Vec3;
+use rayon::prelude::*;
 
 /// Points tested per block of a scan.
 pub(super) const BLOCK: usize = 8;
 
 /// Points with normals and payloads in grid cells, for searches with a disc filter.
+///
+/// Per point: three coordinates (12 bytes), the normal's 16-bit octahedral code
+/// ([`encode_dir`]; the filter reads its decoded value from [`dir_table`]), the
+/// payload, and with [`DiscGrid::build_soa`]'s `keep_order` the input index (4 bytes).
 #[derive(Clone, Debug, Default)]
 pub struct DiscGrid<P> {
-    /// The cells (their points' own payload is empty; searches read the arrays below).
+    /// The cells (no entries; searches read the arrays below).
     pub(super) cells: PointGrid<()>,
     /// Coordinates in grid order, then `BLOCK` far-away entries (a block may read
     /// past its range's end; those lanes are masked).
     x: Vec<f32>,
     y: Vec<f32>,
     z: Vec<f32>,
-    /// Normals, grid order, padded likewise.
-    nx: Vec<f32>,
-    ny: Vec<f32>,
-    nz: Vec<f32>,
+    /// Normal codes, grid order, padded likewise.
+    normals: Vec<u16>,
     /// Payload in grid order.
     items: Vec<P>,
+    /// Input index of each point (grid order), when kept.
+    order: Vec<u32>,
 }
 
-impl<P: Copy> DiscGrid<P> {
+impl<P: Copy + Send + Sync> DiscGrid<P> {
     /// Indexes `items` at `positions` with `normals` (same lengths; the shortest
     /// counts), cells `spacings` × the points' median nearest-neighbour distance.
-    /// Deterministic: the order within a cell is the input order.
+    /// Normals are stored as 16-bit octahedral codes ([`encode_dir`]): a normal
+    /// decoded from such a code (a photon's) is kept exactly, any other within the
+    /// code's precision. Deterministic: the order within a cell is the input order.
     pub fn build(positions: &[Vec3], normals: &[Vec3], items: &[P], spacings: f32) -> Self {
         let n = positions.len().min(normals.len()).min(items.len());
-        let mut cells = PointGrid::build_spaced(&positions[..n], vec![(); n], spacings);
-        let order = std::mem::take(&mut cells.order);
-        let entries = std::mem::take(&mut cells.entries);
-        let pad = |v: Vec<f32>| v.into_iter().chain(std::iter::repeat_n(f32::INFINITY, BLOCK)).collect::<Vec<f32>>();
-        let normal = |a: usize| pad(order.iter().map(|&i| normals[i as usize][a]).collect());
+        let coord = |a: usize| positions[..n].iter().map(|p| p[a]).collect();
+        let codes = normals[..n].iter().map(|&v| encode_dir(v)).collect();
+        Self::build_soa(coord(0), coord(1), coord(2), codes, items[..n].to_vec(), spacings, false)
+    }
+
+    /// [`DiscGrid::build`] from coordinate arrays and normal codes, which it consumes
+    /// (each input array is freed once its grid-order copy is made, so the build
+    /// needs little beyond the grid itself); `keep_order` keeps each point's input
+    /// index ([`DiscGrid::source`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn build_soa(x: Vec<f32>, y: Vec<f32>, z: Vec<f32>, normals: Vec<u16>, items: Vec<P>, spacings: f32, keep_order: bool) -> Self {
+        let n = x.len().min(y.len()).min(z.len()).min(normals.len()).min(items.len());
+        let pos = |i: usize| Vec3::new(x[i], y[i], z[i]);
+        let cell = super::spaced_cell(n, &pos, spacings);
+        let (cells, order) = PointGrid::<()>::frame(n, &pos, cell);
+        fn permute<T: Copy + Send + Sync>(v: Vec<T>, order: &[u32], pad: Option<T>) -> Vec<T> {
+            let mut out = Vec::with_capacity(order.len() + if pad.is_some() { BLOCK } else { 0 });
+            out.par_extend(order.par_iter().map(|&i| v[i as usize]));
+            drop(v);
+            out.extend(pad.into_iter().flat_map(|p| std::iter::repeat_n(p, BLOCK)));
+            out
+        }
+        let far = Some(f32::INFINITY);
+        let (x, y, z) = (permute(x, &order, far), permute(y, &order, far), permute(z, &order, far));
         DiscGrid {
-            x: pad(entries.iter().map(|e| e.pos.x).collect()),
-            y: pad(entries.iter().map(|e| e.pos.y).collect()),
-            z: pad(entries.iter().map(|e| e.pos.z).collect()),
-            nx: normal(0),
-            ny: normal(1),
-            nz: normal(2),
-            items: order.iter().map(|&i| items[i as usize]).collect(),
+            x,
+            y,
+            z,
+            normals: permute(normals, &order, Some(0)),
+            items: permute(items, &order, None),
+            order: if keep_order { order } else { Vec::new() },
             cells,
         }
     }
@@ -81,15 +107,31 @@ impl<P> DiscGrid<P> {
         Vec3::new(self.x[i], self.y[i], self.z[i])
     }
 
-    /// Normal of point `i` (grid order).
+    /// Normal of point `i` (grid order), decoded.
     #[inline]
     pub fn normal(&self, i: usize) -> Vec3 {
-        Vec3::new(self.nx[i], self.ny[i], self.nz[i])
+        decode_dir(self.normals[i])
     }
 
-    /// Bytes held (coordinates, normals, payload, cell starts).
+    /// Normal code of point `i` (grid order).
+    #[inline]
+    pub fn normal_code(&self, i: usize) -> u16 {
+        self.normals[i]
+    }
+
+    /// Input index of point `i` (grid order), when the build kept them.
+    #[inline]
+    pub fn source(&self, i: usize) -> Option<usize> {
+        self.order.get(i).map(|&s| s as usize)
+    }
+
+    /// Bytes held (coordinates, normals, payload, input indices, cell starts).
     pub fn memory_bytes(&self) -> usize {
-        self.x.len() * 24 + self.items.len() * std::mem::size_of::<P>() + self.cells.start.memory_bytes()
+        self.x.len() * 12
+            + self.normals.len() * 2
+            + self.items.len() * std::mem::size_of::<P>()
+            + self.order.len() * 4
+            + self.cells.start.memory_bytes()
     }
 
     /// The nearest point to `p` closer than distance² `max_r2` that lies within
@@ -143,10 +185,12 @@ impl<P> DiscGrid<P> {
     #[inline(always)]
     pub(super) fn prefetch_range(&self, a: usize, b: usize) {
         if a < b {
-            for v in [&self.x, &self.y, &self.z, &self.nx, &self.ny, &self.nz] {
+            for v in [&self.x, &self.y, &self.z] {
                 super::prefetch(&v[a]);
                 super::prefetch(&v[b - 1]);
             }
+            super::prefetch(&self.normals[a]);
+            super::prefetch(&self.normals[b - 1]);
             super::prefetch(&self.items[a]);
             super::prefetch(&self.items[b - 1]);
         }
@@ -231,7 +275,8 @@ impl<P> DiscGrid<P> {
         let (dx, dy, dz) = (self.x[i] - p.x, self.y[i] - p.y, self.z[i] - p.z);
         let d2 = dx * dx + dy * dy + dz * dz;
         let plane = (dx * n.x + dy * n.y + dz * n.z).abs();
-        let facing = self.nx[i] * n.x + self.ny[i] * n.y + self.nz[i] * n.z;
+        let [nx, ny, nz, _] = dir_table()[self.normals[i] as usize].0;
+        let facing = nx * n.x + ny * n.y + nz * n.z;
         ((d2 < r2) & (plane <= thick) & (facing >= cos), d2)
     }
 
@@ -253,9 +298,10 @@ impl<P> DiscGrid<P> {
             v[i..i + BLOCK].try_into().expect("padded")
         }
         let (x, y, z) = (lanes(&self.x, i), lanes(&self.y, i), lanes(&self.z, i));
-        let (nx, ny, nz) = (lanes(&self.nx, i), lanes(&self.ny, i), lanes(&self.nz, i));
+        let codes: &[u16; BLOCK] = self.normals[i..i + BLOCK].try_into().expect("padded");
+        let table = dir_table();
         // SAFETY: SSE is part of x86-64; every load is within a BLOCK-long array
-        // (4h + 4 ≤ BLOCK).
+        // (4h + 4 ≤ BLOCK) or a 16-byte aligned table entry.
         unsafe {
             let (px, py, pz) = (_mm_set1_ps(p.x), _mm_set1_ps(p.y), _mm_set1_ps(p.z));
             let (qx, qy, qz) = (_mm_set1_ps(n.x), _mm_set1_ps(n.y), _mm_set1_ps(n.z));
@@ -267,13 +313,20 @@ impl<P> DiscGrid<P> {
                 let dz = _mm_sub_ps(_mm_loadu_ps(z.as_ptr().add(o)), pz);
                 let dd = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
                 let plane = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, qx), _mm_mul_ps(dy, qy)), _mm_mul_ps(dz, qz));
-                let facing = _mm_add_ps(
-                    _mm_add_ps(_mm_mul_ps(_mm_loadu_ps(nx.as_ptr().add(o)), qx), _mm_mul_ps(_mm_loadu_ps(ny.as_ptr().add(o)), qy)),
-                    _mm_mul_ps(_mm_loadu_ps(nz.as_ptr().add(o)), qz),
-                );
-                let ok =
-                    _mm_and_ps(_mm_and_ps(_mm_cmplt_ps(dd, rv), _mm_cmple_ps(_mm_andnot_ps(sign, plane), tv)), _mm_cmpge_ps(facing, cv));
-                (ok, dd)
+                let near = _mm_and_ps(_mm_cmplt_ps(dd, rv), _mm_cmple_ps(_mm_andnot_ps(sign, plane), tv));
+                // Most lanes fail the distance or plane test: the normals (four table
+                // loads) only when one passes; the mask is the same either way.
+                if _mm_movemask_ps(near) == 0 {
+                    return (near, dd);
+                }
+                // The four decoded normals (x, y, z, 0 each), transposed to x, y, z lanes.
+                let row = |j: usize| _mm_load_ps(table[codes[o + j] as usize].0.as_ptr());
+                let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+                let (t0, t1) = (_mm_unpacklo_ps(r0, r1), _mm_unpacklo_ps(r2, r3));
+                let (t2, t3) = (_mm_unpackhi_ps(r0, r1), _mm_unpackhi_ps(r2, r3));
+                let (nx, ny, nz) = (_mm_movelh_ps(t0, t1), _mm_movehl_ps(t1, t0), _mm_movelh_ps(t2, t3));
+                let facing = _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, qx), _mm_mul_ps(ny, qy)), _mm_mul_ps(nz, qz));
+                (_mm_and_ps(near, _mm_cmpge_ps(facing, cv)), dd)
             })
         }
     }
@@ -287,7 +340,11 @@ mod tests {
     fn nearest_disc_equals_the_point_grid() {
         // Points on the faces of a box with the face's inward normal, some inside
         // with random normals.
-        let (pos, items) = super::super::tests::points(6000);
+        let (pos, mut items) = super::super::tests::points(6000);
+        // The grid keeps normals as 16-bit codes: compare on the decoded ones.
+        for it in &mut items {
+            it.0 = decode_dir(encode_dir(it.0));
+        }
         let nrm: Vec<Vec3> = items.iter().map(|it| it.0).collect();
         let ids: Vec<u32> = (0..pos.len() as u32).collect();
         let disc = DiscGrid::build(&pos, &nrm, &ids, 4.0);

@@ -17,7 +17,6 @@
 //! photons.
 
 use super::disc::{BLOCK, DiscGrid};
-use crate::math::Color;
 use crate::photon::kdtree::KnnHeap;
 use crate::photon::record::Photon;
 use glam::Vec3;
@@ -29,26 +28,25 @@ fn cell_spacings(k: usize) -> f32 {
     (k.max(1) as f32 / std::f32::consts::LN_2).sqrt()
 }
 
-/// A stored photon as the estimates read it, decoded once when the grid is built
-/// (each photon serves thousands of estimates at final-gather hits).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DecodedPhoton {
-    /// Power ([`Photon::power`]).
-    pub power: Color,
-    /// Unit direction towards where it came from ([`Photon::direction`]).
-    pub dir: Vec3,
-}
+/// Photons in grid cells for k-nearest searches with the estimate's disc filter: per
+/// photon its exact position (12 bytes), its record ([`Photon`], 8 bytes: power,
+/// direction and normal, decoded when read), its normal's code again beside the
+/// coordinates for the filter (2 bytes) and its input index (4 bytes, to rebuild
+/// the maps' kd-trees in input order).
+pub type PhotonGrid = DiscGrid<Photon>;
 
-/// Photons in grid cells for k-nearest searches with the estimate's disc filter.
-pub type PhotonGrid = DiscGrid<DecodedPhoton>;
-
-impl DiscGrid<DecodedPhoton> {
-    /// Indexes `photons` at `positions` (same length) for searches of `k` photons,
-    /// with their (decoded) normals.
+impl DiscGrid<Photon> {
+    /// Indexes `photons` at `positions` (same length) for searches of `k` photons.
     pub fn build_photons(positions: &[Vec3], photons: &[Photon], k: usize) -> Self {
-        let normals: Vec<Vec3> = photons.iter().map(|p| p.normal()).collect();
-        let decoded: Vec<DecodedPhoton> = photons.iter().map(|p| DecodedPhoton { power: p.power(), dir: p.direction() }).collect();
-        DiscGrid::build(positions, &normals, &decoded, cell_spacings(k))
+        let n = positions.len().min(photons.len());
+        let coord = |a: usize| positions[..n].iter().map(|p| p[a]).collect();
+        Self::build_photons_soa(coord(0), coord(1), coord(2), photons[..n].to_vec(), k)
+    }
+
+    /// [`DiscGrid::build_photons`] from coordinate arrays, which it consumes.
+    pub fn build_photons_soa(x: Vec<f32>, y: Vec<f32>, z: Vec<f32>, photons: Vec<Photon>, k: usize) -> Self {
+        let normals = photons.iter().map(|p| p.normal_code()).collect();
+        DiscGrid::build_soa(x, y, z, normals, photons, cell_spacings(k), true)
     }
 
     /// The k nearest photons to `p` within distance² `max_r2` that lie within
@@ -131,6 +129,7 @@ impl DiscGrid<DecodedPhoton> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Color;
     use crate::photon::kdtree::KdTree;
 
     /// Photons on the faces of a box (normal: the face's inward one), a ten times

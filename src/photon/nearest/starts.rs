@@ -31,10 +31,10 @@ impl CellStarts {
     /// Counting sort of points by cell: `cells[i]` is point i's cell (tile order) in a
     /// grid of `tiles` tiles. Returns the starts and the points in cell order (input
     /// order within a cell).
-    pub(super) fn build(cells: &[usize], tiles: usize) -> (Self, Vec<u32>) {
+    pub(super) fn build(cells: &[u32], tiles: usize) -> (Self, Vec<u32>) {
         let mut used = vec![false; tiles];
         for &c in cells {
-            used[c / TILE_CELLS] = true;
+            used[c as usize / TILE_CELLS] = true;
         }
         let mut next = 0usize;
         let slot: Vec<u32> = used
@@ -51,7 +51,7 @@ impl CellStarts {
         let mut starts = vec![0u32; next];
         let at = |c: usize| slot[c / TILE_CELLS] as usize + c % TILE_CELLS;
         for &c in cells {
-            starts[at(c) + 1] += 1;
+            starts[at(c as usize) + 1] += 1;
         }
         let mut run = 0u32;
         for tile in starts.chunks_exact_mut(TILE_CELLS + 1) {
@@ -64,7 +64,7 @@ impl CellStarts {
         let mut fill = starts.clone();
         let mut order = vec![0u32; cells.len()];
         for (i, &c) in cells.iter().enumerate() {
-            let f = &mut fill[at(c)];
+            let f = &mut fill[at(c as usize)];
             order[*f as usize] = i as u32;
             *f += 1;
         }
@@ -94,11 +94,11 @@ mod tests {
     #[test]
     fn ranges_equal_a_dense_counting_sort() {
         // Three tiles, the middle one empty; cells visited out of order.
-        let cells: Vec<usize> = (0..500usize).map(|i| (i * 37 + i / 7) % 64 + if i % 3 == 0 { 128 } else { 0 }).collect();
+        let cells: Vec<u32> = (0..500u32).map(|i| (i * 37 + i / 7) % 64 + if i % 3 == 0 { 128 } else { 0 }).collect();
         let (s, order) = CellStarts::build(&cells, 3);
         let mut dense = vec![0u32; 3 * TILE_CELLS + 1];
         for &c in &cells {
-            dense[c + 1] += 1;
+            dense[c as usize + 1] += 1;
         }
         for c in 0..3 * TILE_CELLS {
             dense[c + 1] += dense[c];
