@@ -127,7 +127,6 @@ fn sppm_sees_textures_and_the_environment() {
 /// environment when that integrator does (measured with it: blocks within −1.7 …
 /// +0.1 %, image mean ratio 0.994).
 #[test]
-#[ignore = "needs the photon integrator's textures and environment light (branch phtex); remove on merging it"]
 fn ppm_sees_textures_and_the_environment() {
     let cfg = RenderConfig { integrator: "ppm".into(), seed: 7, spp: 4, ..Default::default() }
         .with("passes", 16)

@@ -48,6 +48,16 @@ impl Bsdf {
         }
     }
 
+    /// True when light crosses the surface through a non-delta lobe (rough glass, also
+    /// under a mask): photon estimates there count photons from both sides.
+    pub fn transmits_nondelta(&self) -> bool {
+        match self {
+            Bsdf::RoughDielectric(_) => true,
+            Bsdf::Mask(m) => m.nested.transmits_nondelta(),
+            _ => false,
+        }
+    }
+
     /// Probability that [`Bsdf::sample`] picks a delta lobe for `wo` (the delta lobes
     /// are always the lowest `u_lobe` values, so `u_lobe` < this ⇔ a delta sample).
     /// 0 for BSDFs without delta lobes, 1 for purely delta ones.

@@ -169,9 +169,16 @@ impl PhotonContext {
                 let mut l = bsdf.diffuse_albedo() * std::f32::consts::FRAC_1_PI * e;
                 if bsdf.has_glossy() {
                     l += with_heap(|h| {
-                        estimate::radiance_with(Some((world, &mut *stats)), &self.global, it, wo, &self.est_global, h, |wi| {
-                            bsdf.eval_glossy(&it.sp, wo, wi)
-                        })
+                        estimate::radiance_with(
+                            Some((world, &mut *stats)),
+                            &self.global,
+                            it,
+                            wo,
+                            bsdf.transmits_nondelta(),
+                            &self.est_global,
+                            h,
+                            |wi| bsdf.eval_glossy(&it.sp, wo, wi),
+                        )
                     });
                 }
                 return l;
