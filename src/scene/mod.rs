@@ -8,6 +8,7 @@ pub mod loader;
 pub mod mitsuba;
 pub mod obj;
 pub mod ply;
+pub mod serialized;
 pub mod textures;
 
 use crate::camera::Camera;

@@ -37,7 +37,7 @@ pub fn shape_mesh(p: &Plugin, warnings: &mut Vec<String>) -> Result<ShapeMesh> {
     let flip = p.bool_or("flip_normals", false)?;
     let mut smooth_missing_normals = false;
     let (mut mesh, uvs) = match p.ty.as_str() {
-        "obj" | "ply" => {
+        "obj" | "ply" | "serialized" => {
             let (name, loc) = p.string("filename")?.ok_or_else(|| p.err("needs a `filename`"))?;
             let path = loc.resolve(&name);
             let face_normals = p.bool_or("face_normals", false)?;
@@ -51,7 +51,14 @@ pub fn shape_mesh(p: &Plugin, warnings: &mut Vec<String>) -> Result<ShapeMesh> {
                 let has_uv = o.uvs.faces.iter().any(Option::is_some);
                 (o.mesh, has_uv.then_some(o.uvs))
             } else {
-                let m = load_ply(&path).map_err(|e| anyhow!("{loc}: {e}"))?;
+                let m = if p.ty == "ply" {
+                    load_ply(&path)
+                } else {
+                    let index = p.int("shape_index")?.unwrap_or(0);
+                    let index = u32::try_from(index).map_err(|_| p.err(format!("shape_index must not be negative, got {index}")))?;
+                    crate::scene::serialized::load_serialized(&path, index)
+                }
+                .map_err(|e| anyhow!("{loc}: {e:#}"))?;
                 warnings.extend(m.warnings);
                 (m.mesh, m.uvs)
             };
@@ -81,8 +88,7 @@ pub fn shape_mesh(p: &Plugin, warnings: &mut Vec<String>) -> Result<ShapeMesh> {
             to_world = to_world * Mat4::from_translation(c) * Mat4::from_scale(Vec3::splat(r));
             sphere()
         }
-        "serialized" => return Err(p.err("the `serialized` format is not supported (convert the mesh to PLY)")),
-        other => return Err(p.err(format!("shape type `{other}` is not supported (obj, ply, rectangle, cube, disk, sphere)"))),
+        other => return Err(p.err(format!("shape type `{other}` is not supported (obj, ply, serialized, rectangle, cube, disk, sphere)"))),
     };
     if to_world.determinant() == 0.0 {
         return Err(p.err("`to_world` is singular"));

@@ -159,3 +159,25 @@ fn every_bsdf_maps_to_its_namesake() {
     // Bare diffuse (the mask's) is reported as one-sided; nothing else is.
     assert_eq!(s.warnings.iter().filter(|w| w.contains("one-sided")).count(), 1, "{:?}", s.warnings);
 }
+
+#[test]
+fn serialized_shape_with_index() {
+    use glam::Vec2;
+    let d = tempfile::tempdir().unwrap();
+    let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ONE];
+    let uv = [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::ONE];
+    let data = crate::scene::serialized::write_serialized(&[(&p[..3], &[], &[], &[[0, 1, 2]]), (&p, &[], &uv, &[[0, 1, 2], [1, 3, 2]])]);
+    std::fs::write(d.path().join("m.serialized"), data).unwrap();
+    let shape = |i: i32| {
+        format!(
+            "<shape type=\"serialized\"><string name=\"filename\" value=\"m.serialized\"/><integer name=\"shape_index\" value=\"{i}\"/>\
+             <transform name=\"to_world\"><translate x=\"2\"/></transform></shape>"
+        )
+    };
+    let s = load_scene(&write(d.path(), "s.xml", &format!("{SENSOR}\n{}", shape(1)))).unwrap();
+    assert_eq!(s.triangles.len(), 2);
+    assert_eq!(s.triangles[1][1], Vec3::new(3.0, 1.0, 1.0));
+    assert!(!s.uvs.is_empty());
+    let e = load_scene(&write(d.path(), "e.xml", &format!("{SENSOR}\n{}", shape(5)))).unwrap_err().to_string();
+    assert!(e.contains("m.serialized") && e.contains("out of range"), "{e}");
+}
