@@ -106,7 +106,7 @@ crate::params! {
         filter: String = "cone",
         /// Photons (and precomputed points) must lie within ±disc × radius of the tangent plane and have arrived on the side the estimate looks from (corners, thin walls); ≥ 1 disables the plane test.
         disc: f32 = "0.25",
-        /// Rays per precomputed-irradiance estimate that measure the surface area inside the estimate's disc (thin and curved geometry, edges: the boundary-bias correction); 0 divides by π r² as plain photon mapping does.
+        /// Rays per global photon-map estimate (direct visualisation, final-gather hits, precomputed irradiance) that measure the surface area inside the estimate's disc (thin and curved geometry, edges: the boundary-bias correction), skipped when the photons found already fill the disc; 0 divides by π r² as plain photon mapping does.
         area_probes: u32 = "32",
     }
 }
@@ -347,10 +347,11 @@ impl Integrator for PhotonIntegrator {
         let global = photon::global_grid(&mut maps, p.k as usize);
         self.times.insert("kdtree_build_s".into(), maps.build_s + t_global.elapsed().as_secs_f64());
         let k_of = |k: u32| if bounded { photon::within::ALL } else { k as usize };
-        let est_global = EstimateParams::new(k_of(p.k), max_radius, filter, p.disc);
+        // Global estimates (direct visualisation, final-gather hits, precomputed
+        // irradiance) divide by the surface inside their disc; caustic ones by π r².
+        let est_global = EstimateParams::new(k_of(p.k), max_radius, filter, p.disc).with_area_probes(p.area_probes);
         let est_caustic = EstimateParams::new(k_of(p.caustic_k), caustic_radius, filter, p.disc);
-        let est_pre = est_global.with_area_probes(p.area_probes);
-        let pre = self.setup.gather.precompute_stride().map(|stride| irradiance::precompute(world, &global, stride, &est_pre));
+        let pre = self.setup.gather.precompute_stride().map(|stride| irradiance::precompute(world, &global, stride, &est_global));
         self.times.insert("precompute_s".into(), t1.elapsed().as_secs_f64());
         let mut counts = vec![gp.gather_samples];
         for _ in 1..gp.gather_bounces {
