@@ -91,12 +91,16 @@ impl Res for RenderConfig {
     }
 }
 
-/// `(integrator, config, tolerance on the worst 16-px block's |relative error|)`.
+/// `(integrator, config, tolerance on the worst 16-px block's |relative error|)`; the
+/// photon integrator with its default gather (`irradiance_cache`) and each other one.
 fn cases() -> Vec<(&'static str, RenderConfig, f64)> {
     let base = |i: &str, spp: u32, seed: u64| RenderConfig { integrator: i.into(), spp, seed, ..Default::default() };
     vec![
         ("bdpt", base("bdpt", 16, 3), 0.06),
         ("photon", base("photon", 8, 4).with("photons", 300_000), 0.06),
+        ("photon gather=direct", base("photon", 8, 4).with("photons", 300_000).with("gather", "direct"), 0.08),
+        ("photon gather=final_gather", base("photon", 4, 4).with("photons", 300_000).with("gather", "final_gather"), 0.08),
+        ("photon gather=precomputed", base("photon", 8, 4).with("photons", 300_000).with("gather", "precomputed"), 0.06),
         ("sppm", base("sppm", 1, 5).with("passes", 32), 0.06),
         ("ppm", base("ppm", 1, 6).with("passes", 8).with("photons", 100_000), 0.08),
         ("vcm", base("vcm", 1, 7).with("passes", 16), 0.06),
