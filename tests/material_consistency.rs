@@ -21,7 +21,8 @@ use std::path::Path;
 
 const RES: u32 = 64;
 
-fn scene(dir: &Path) -> Scene {
+/// The box; `glass_alpha` is the rough glass cube's roughness.
+fn scene(dir: &Path, glass_alpha: f32) -> Scene {
     let wall = |t: &str, m: &str| format!(r#"<shape type="rectangle"><transform name="to_world">{t}</transform>{m}</shape>"#);
     let diffuse = |c: &str| format!(r#"<bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="{c}"/></bsdf></bsdf>"#);
     let body = [
@@ -57,7 +58,7 @@ fn scene(dir: &Path) -> Scene {
             .into(),
         wall(
             r#"<scale value="0.25"/><rotate y="1" angle="30"/><translate x="0.5" y="-0.75" z="-0.2"/>"#,
-            r#"<bsdf type="roughdielectric"><float name="alpha" value="0.3"/><float name="int_ior" value="1.5"/></bsdf>"#,
+            &format!(r#"<bsdf type="roughdielectric"><float name="alpha" value="{glass_alpha}"/><float name="int_ior" value="1.5"/></bsdf>"#),
         )
         .replace("rectangle", "cube"),
         wall(
@@ -110,12 +111,26 @@ fn cases() -> Vec<(&'static str, RenderConfig, f64)> {
 #[test]
 fn every_integrator_agrees_with_path_on_every_material() {
     let d = tempfile::tempdir().unwrap();
-    let scene = scene(d.path());
+    check(&scene(d.path(), 0.3), cases());
+}
+
+/// Narrow rough glass (α = 0.1): the photon integrator passes through it by sampling
+/// its BSDF, as through glass, instead of estimating a photon density under a narrow
+/// transmission lobe — which put its block +23 % (`gather = "direct"`) and +10 %
+/// (`ppm`) off `path` here, and +27 % on Mitsuba's own image of `mi-rough.xml`.
+#[test]
+fn photon_estimates_pass_through_narrow_rough_glass() {
+    let d = tempfile::tempdir().unwrap();
+    let photon_family = cases().into_iter().filter(|c| c.0.starts_with("photon") || c.0 == "ppm").collect();
+    check(&scene(d.path(), 0.1), photon_family);
+}
+
+fn check(scene: &Scene, cases: Vec<(&'static str, RenderConfig, f64)>) {
     assert!(!scene.textures.is_empty());
-    let reference = render(&scene, RenderConfig { spp: 256, seed: 1, ..Default::default() });
+    let reference = render(scene, RenderConfig { spp: 256, seed: 1, ..Default::default() });
     let mut bad = Vec::new();
-    for (name, cfg, tol) in cases() {
-        let img = render(&scene, cfg);
+    for (name, cfg, tol) in cases {
+        let img = render(scene, cfg);
         let rep = compare_blocks_below(&img, &reference, 16, 0.005, 5.0).unwrap();
         assert!(rep.blocks.len() >= 12, "{name}: only {} blocks judged", rep.blocks.len());
         let rel: Vec<String> = rep.blocks.iter().map(|b| format!("{:+.3}", b.rel())).collect();
