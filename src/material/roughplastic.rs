@@ -47,10 +47,10 @@ pub struct RoughPlastic {
     pub internal_reflectance: f32,
 }
 
-/// Directional reflectance ∫ F·G1(wi, m) dP(m) of a rough dielectric interface of
-/// relative index `eta`, lit from cosine `mu`, by midpoint quadrature over the
+/// Mean of `term(wo, m)` over the normals `m` visible from the direction `wo` of
+/// cosine `mu` (clamped to 1e-4), by midpoint quadrature (32×32 points) over the
 /// visible-normal sample space.
-pub fn rough_reflectance(mf: &Microfacet, mu: f32, eta: f32) -> f32 {
+fn visible_normal_mean(mf: &Microfacet, mu: f32, term: impl Fn(Vec3, Vec3) -> f32) -> f32 {
     let mu = mu.clamp(1e-4, 1.0);
     let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
     let n = 32;
@@ -58,35 +58,27 @@ pub fn rough_reflectance(mf: &Microfacet, mu: f32, eta: f32) -> f32 {
     for i in 0..n {
         for j in 0..n {
             let u = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
-            let m = mf.sample_visible(wo, u);
-            let wi = reflect_about(wo, m);
-            s += (fresnel_dielectric_eta(wo.dot(m), eta) * mf.g1(wi, m)) as f64;
+            s += term(wo, mf.sample_visible(wo, u)) as f64;
         }
     }
     (s / (n * n) as f64) as f32
 }
 
+/// Directional reflectance ∫ F·G1(wi, m) dP(m) of a rough dielectric interface of
+/// relative index `eta`, lit from cosine `mu`.
+pub fn rough_reflectance(mf: &Microfacet, mu: f32, eta: f32) -> f32 {
+    visible_normal_mean(mf, mu, |wo, m| fresnel_dielectric_eta(wo.dot(m), eta) * mf.g1(reflect_about(wo, m), m))
+}
+
 /// Directional transmittance ∫ (1 − F)·G1(wt, m) dP(m) into a rough dielectric
 /// interface of relative index `eta`, lit from cosine `mu` (wt: the refracted
-/// direction, which must leave below the surface), by the same quadrature as
-/// [`rough_reflectance`] (Mitsuba 3's `eval_transmittance`).
+/// direction, which must leave below the surface; Mitsuba 3's `eval_transmittance`).
 pub fn rough_transmittance(mf: &Microfacet, mu: f32, eta: f32) -> f32 {
-    let mu = mu.clamp(1e-4, 1.0);
-    let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-    let n = 32;
-    let mut s = 0.0f64;
-    for i in 0..n {
-        for j in 0..n {
-            let u = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
-            let m = mf.sample_visible(wo, u);
-            let (f, cos_t, _, eta_ti) = fresnel_full(wo.dot(m), eta);
-            let wt = m * (wo.dot(m) * eta_ti + cos_t) - wo * eta_ti;
-            if wt.z < 0.0 {
-                s += ((1.0 - f) * mf.g1(wt, m)) as f64;
-            }
-        }
-    }
-    (s / (n * n) as f64) as f32
+    visible_normal_mean(mf, mu, |wo, m| {
+        let (f, cos_t, _, eta_ti) = fresnel_full(wo.dot(m), eta);
+        let wt = m * (wo.dot(m) * eta_ti + cos_t) - wo * eta_ti;
+        if wt.z < 0.0 { (1.0 - f) * mf.g1(wt, m) } else { 0.0 }
+    })
 }
 
 impl RoughPlastic {
