@@ -236,6 +236,19 @@ fn both(stem: &Path, png: impl FnOnce(&Path) -> Result<()>, svg: impl FnOnce(&Pa
     Ok((p, s))
 }
 
+/// Size of every plot, in pixels (PNG) and user units (SVG).
+const PLOT_SIZE: (u32, u32) = (900, 600);
+
+/// Draws into an RGB buffer and writes it as a PNG with the `image` crate the film already
+/// uses (plotters' own encoder would build a second, older `image` into the binary).
+fn png_file(path: &Path, draw: impl FnOnce(DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>) -> Result<()> {
+    let (w, h) = PLOT_SIZE;
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    draw(BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area())?;
+    image::save_buffer_with_format(path, &buf, w, h, image::ColorType::Rgb8, image::ImageFormat::Png)
+        .with_context(|| format!("{}: cannot write PNG", path.display()))
+}
+
 /// Writes `stem.png` and `stem.svg` with a line chart.
 pub fn line_plot(stem: &Path, plot: &LinePlot) -> Result<(PathBuf, PathBuf)> {
     line_plot_with_bands(stem, plot, &[])
@@ -245,18 +258,14 @@ pub fn line_plot(stem: &Path, plot: &LinePlot) -> Result<(PathBuf, PathBuf)> {
 pub fn line_plot_with_bands(stem: &Path, plot: &LinePlot, bands: &[Band]) -> Result<(PathBuf, PathBuf)> {
     both(
         stem,
-        |p| draw_lines(BitMapBackend::new(p, (900, 600)).into_drawing_area(), plot, bands),
-        |p| draw_lines(SVGBackend::new(p, (900, 600)).into_drawing_area(), plot, bands),
+        |p| png_file(p, |b| draw_lines(b, plot, bands)),
+        |p| draw_lines(SVGBackend::new(p, PLOT_SIZE).into_drawing_area(), plot, bands),
     )
 }
 
 /// Writes `stem.png` and `stem.svg` with stacked bars.
 pub fn bar_plot(stem: &Path, plot: &StackedBars) -> Result<(PathBuf, PathBuf)> {
-    both(
-        stem,
-        |p| draw_bars(BitMapBackend::new(p, (900, 600)).into_drawing_area(), plot),
-        |p| draw_bars(SVGBackend::new(p, (900, 600)).into_drawing_area(), plot),
-    )
+    both(stem, |p| png_file(p, |b| draw_bars(b, plot)), |p| draw_bars(SVGBackend::new(p, PLOT_SIZE).into_drawing_area(), plot))
 }
 
 /// Least-squares slope of log(y) against log(x) over the points with x, y > 0.
