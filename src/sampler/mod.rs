@@ -170,6 +170,10 @@ pub fn make(name: &str, seed: u64, count: Option<u64>) -> Result<Box<dyn Sampler
 /// One sampler of [`make`] by value, for hot loops that run monomorphised per
 /// sampler type (static dispatch: no virtual call per dimension, and the digit
 /// loops inline into the caller): match it with [`with_sampler!`].
+// `halton` carries its stream's 64 rotations (312 bytes): a sampler is made once and
+// cloned once per tile or thread, so the size costs nothing and a box would cost a
+// pointer chase per value.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone)]
 pub enum AnySampler {
     /// `random`.
