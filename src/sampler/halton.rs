@@ -58,7 +58,7 @@ impl HaltonSampler {
         frac_to_f32(fraction(&self.tables, self.scramble, self.key, self.index, dim as usize, dim))
     }
     /// [`HaltonSampler::value`], reading the stream's rotation from its cache.
-    #[inline]
+    #[inline(always)]
     fn value_cached(&mut self, dim: u32) -> f32 {
         let k = dim as usize;
         if !self.scramble || k >= self.tables.len() || k >= PRIMES.len() {
@@ -141,6 +141,9 @@ impl Sampler for HaltonSampler {
     }
     fn clone_box(&self) -> Box<dyn Sampler> {
         Box::new(self.clone())
+    }
+    fn to_any(&self) -> Option<super::AnySampler> {
+        Some(super::AnySampler::Halton(self.clone()))
     }
 }
 

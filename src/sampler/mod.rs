@@ -65,6 +65,11 @@ pub trait Sampler: Send + Sync {
     }
     /// A boxed copy (for per-thread use).
     fn clone_box(&self) -> Box<dyn Sampler>;
+    /// A copy by value as an [`AnySampler`], for loops that dispatch statically
+    /// ([`with_sampler!`]); `None` for samplers that are not one of [`make`]'s.
+    fn to_any(&self) -> Option<AnySampler> {
+        None
+    }
     /// Values of dimensions `dim..dim + out.len()` of sample `index` of `stream`:
     /// what `start(stream, index)`, `set_dimension(dim)` and `out.len()` calls of
     /// `next_1d` would give, without touching this sampler. The gathers draw their

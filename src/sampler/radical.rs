@@ -82,7 +82,7 @@ impl DigitTables {
 
     /// Scrambled radical inverse of `index` in base `PRIMES[k]` as a 32-bit fraction
     /// (rounded down). `k < self.len()`.
-    #[inline]
+    #[inline(always)]
     pub fn fraction(&self, k: usize, index: u64) -> u32 {
         if index < SMALL {
             return self.small[index as usize * self.bases.len() + k];
@@ -91,7 +91,7 @@ impl DigitTables {
     }
 
     /// [`DigitTables::fraction`] computed from the digits of `index`.
-    #[inline]
+    #[inline(never)]
     fn digits(&self, k: usize, index: u64) -> u32 {
         let b = self.bases[k];
         if b.base == 2 {
