@@ -24,6 +24,11 @@ pub struct World {
     /// when the scene has no textures).
     tex_bindings: Vec<Binding>,
     tex_ranges: Vec<Range<u32>>,
+    /// Per triangle, the shading point of its flat (geometric-normal) shading: the
+    /// unit winding normal and the frame around it, computed once here with the very
+    /// operations `interaction` used per hit (same bits). Triangles with vertex
+    /// normals read only its `ng`.
+    flat: Vec<ShadingPoint>,
 }
 
 /// Everything an integrator needs about a surface hit.
@@ -64,7 +69,15 @@ impl World {
                 r.end = k as u32 + 1;
             }
         }
-        Ok(World { scene, accel, lights, tex_bindings, tex_ranges })
+        let flat = scene
+            .triangles
+            .iter()
+            .map(|t| {
+                let ng = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
+                ShadingPoint::new(ng, ng)
+            })
+            .collect();
+        Ok(World { scene, accel, lights, tex_bindings, tex_ranges, flat })
     }
 
     /// Closest hit along `ray`.
@@ -80,13 +93,14 @@ impl World {
         let tri = &self.scene.triangles[hit.tri as usize];
         let b0 = 1.0 - hit.b1 - hit.b2;
         let p = tri[0] * b0 + tri[1] * hit.b1 + tri[2] * hit.b2;
-        let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
+        let flat = &self.flat[hit.tri as usize];
+        let ng = flat.ng;
         let ni = self.scene.tri_normals[hit.tri as usize];
-        let ns = if ni == NO_NORMALS {
-            ng
+        let sp = if ni == NO_NORMALS {
+            *flat
         } else {
             let n = &self.scene.normals[ni as usize];
-            (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).try_normalize().unwrap_or(ng)
+            ShadingPoint::new(ng, (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).try_normalize().unwrap_or(ng))
         };
         let uv = match self.scene.tri_uvs.get(hit.tri as usize) {
             Some(&k) if k != NO_UVS => {
@@ -95,7 +109,7 @@ impl World {
             }
             _ => Vec2::new(hit.b1, hit.b2),
         };
-        Interaction { p, sp: ShadingPoint::new(ng, ns), tri: hit.tri, t: hit.t, front: ray.d.dot(ng) < 0.0, uv }
+        Interaction { p, sp, tri: hit.tri, t: hit.t, front: ray.d.dot(ng) < 0.0, uv }
     }
 
     /// The BSDF at an interaction with its textured parameters filled in (borrowed,

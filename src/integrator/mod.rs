@@ -11,7 +11,7 @@ use crate::film::Film;
 use crate::geometry::Ray;
 use crate::integrator::render::RenderStats;
 use crate::math::Color;
-use crate::sampler::Sampler;
+use crate::sampler::{AnySampler, Sampler};
 use crate::world::World;
 use std::collections::BTreeMap;
 
@@ -26,6 +26,12 @@ pub trait Integrator: Send + Sync {
     /// Radiance along `ray`; the sampler has been started for this pixel sample and
     /// its dimensions 0–1 used for the pixel position.
     fn li(&self, world: &World, ray: &Ray, sampler: &mut dyn Sampler, stats: &mut TraversalStats) -> Color;
+    /// [`Integrator::li`] with the sampler by value, which an integrator may match once
+    /// ([`crate::sampler::with_sampler!`]) to draw without a virtual call per
+    /// dimension; the same values either way. Default: `li` with a trait object.
+    fn li_any(&self, world: &World, ray: &Ray, sampler: &mut AnySampler, stats: &mut TraversalStats) -> Color {
+        crate::sampler::with_sampler!(sampler, s => self.li(world, ray, s, stats))
+    }
     /// Switches what `li` returns to an extra image (AOV) by name.
     fn set_output(&mut self, aov: &str) -> anyhow::Result<()> {
         anyhow::bail!("integrator `{}` has no extra image `{aov}`", self.name())

@@ -21,7 +21,7 @@ use crate::geometry::Ray;
 use crate::material::TransportMode;
 use crate::math::{Color, power_heuristic};
 use crate::rr::{RrContext, RussianRoulette, roulette};
-use crate::sampler::{BOUNCE_BSDF_LOBE, BOUNCE_RR, Sampler, bounce_dim};
+use crate::sampler::{AnySampler, BOUNCE_BSDF_LOBE, BOUNCE_RR, Sampler, bounce_dim};
 use crate::world::World;
 
 /// Path tracer.
@@ -70,6 +70,19 @@ impl Integrator for PathIntegrator {
     }
 
     fn li(&self, world: &World, camera_ray: &Ray, sampler: &mut dyn Sampler, stats: &mut TraversalStats) -> Color {
+        self.trace(world, camera_ray, sampler, stats)
+    }
+
+    fn li_any(&self, world: &World, ray: &Ray, sampler: &mut AnySampler, stats: &mut TraversalStats) -> Color {
+        crate::sampler::with_sampler!(sampler, s => self.trace(world, ray, s, stats))
+    }
+}
+
+impl PathIntegrator {
+    /// [`Integrator::li`] for any sampler type (compiled once per sampler for
+    /// [`Integrator::li_any`], once for the trait object).
+    #[inline]
+    fn trace<S: Sampler + ?Sized>(&self, world: &World, camera_ray: &Ray, sampler: &mut S, stats: &mut TraversalStats) -> Color {
         let want = |class: PathOutput| self.output == PathOutput::All || self.output == class;
         // Path-type state: the first non-delta vertex k seen; vertices after k so far
         // (before the current one); whether one of them was non-delta.

@@ -6,7 +6,7 @@ use crate::accel::TraversalStats;
 use crate::film::Film;
 use crate::math::{Color, is_finite};
 use crate::progress::progress_bar;
-use crate::sampler::{DIM_PIXEL, Sampler};
+use crate::sampler::{DIM_PIXEL, Sampler, with_sampler};
 use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -42,6 +42,9 @@ pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler,
             let (x0, y0) = (tx * TILE, ty * TILE);
             let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
             let mut s = sampler.clone_box();
+            // By value where the sampler is one of `sampler::make`'s: the integrator
+            // may then draw without virtual calls (`Integrator::li_any`), same values.
+            let mut any = sampler.to_any();
             let mut stats = TraversalStats::default();
             let mut bad = 0u64;
             let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
@@ -55,11 +58,24 @@ pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler,
                     let stream = y as u64 * w as u64 + x as u64;
                     let mut sum = DVec3::ZERO;
                     for i in 0..spp {
-                        s.start(stream, i as u64);
-                        s.set_dimension(DIM_PIXEL);
-                        let u = s.next_2d();
-                        let ray = cam.generate_ray(x as f32 + u[0], y as f32 + u[1]);
-                        let l = integrator.li(world, &ray, s.as_mut(), &mut stats);
+                        let l = match any.as_mut() {
+                            Some(a) => {
+                                let u = with_sampler!(&mut *a, s => {
+                                    s.start(stream, i as u64);
+                                    s.set_dimension(DIM_PIXEL);
+                                    s.next_2d()
+                                });
+                                let ray = cam.generate_ray(x as f32 + u[0], y as f32 + u[1]);
+                                integrator.li_any(world, &ray, a, &mut stats)
+                            }
+                            None => {
+                                s.start(stream, i as u64);
+                                s.set_dimension(DIM_PIXEL);
+                                let u = s.next_2d();
+                                let ray = cam.generate_ray(x as f32 + u[0], y as f32 + u[1]);
+                                integrator.li(world, &ray, s.as_mut(), &mut stats)
+                            }
+                        };
                         if is_finite(l) {
                             sum += l.as_dvec3();
                         } else {

@@ -10,7 +10,7 @@
 //! inverses are returned.
 
 use super::radical::DigitTables;
-use super::{Sampler, dim_hash, frac_to_f32, stream_key};
+use super::{PRIMES, Sampler, dim_hash, frac_to_f32, stream_key};
 use std::sync::Arc;
 
 /// Salt of the hashed values of dimensions beyond the prime table.
@@ -26,6 +26,10 @@ pub struct HaltonSampler {
     key: u64,
     index: u64,
     dim: u32,
+    /// The current stream's rotations of the table dimensions, each hashed on first
+    /// use (bit k of `rot_known`): a pixel's samples share them.
+    rot: [u32; PRIMES.len()],
+    rot_known: u64,
 }
 
 impl HaltonSampler {
@@ -36,12 +40,35 @@ impl HaltonSampler {
     /// With `scramble == false`: the raw sequence, no permutation, no rotation.
     pub fn with_scramble(seed: u64, scramble: bool) -> Self {
         let tables = Arc::new(DigitTables::new(seed, scramble));
-        HaltonSampler { seed, tables, scramble, stream: 0, key: stream_key(seed, 0), index: 0, dim: 0 }
+        HaltonSampler {
+            seed,
+            tables,
+            scramble,
+            stream: 0,
+            key: stream_key(seed, 0),
+            index: 0,
+            dim: 0,
+            rot: [0; PRIMES.len()],
+            rot_known: 0,
+        }
     }
     /// Value of dimension `dim` for the current stream and index.
     #[inline]
     pub fn value(&self, dim: u32) -> f32 {
         frac_to_f32(fraction(&self.tables, self.scramble, self.key, self.index, dim as usize, dim))
+    }
+    /// [`HaltonSampler::value`], reading the stream's rotation from its cache.
+    #[inline(always)]
+    fn value_cached(&mut self, dim: u32) -> f32 {
+        let k = dim as usize;
+        if !self.scramble || k >= self.tables.len() || k >= PRIMES.len() {
+            return self.value(dim);
+        }
+        if self.rot_known & (1 << k) == 0 {
+            self.rot[k] = (dim_hash(self.key, dim, 0) >> 32) as u32;
+            self.rot_known |= 1 << k;
+        }
+        frac_to_f32(self.tables.fraction(k, self.index).wrapping_add(self.rot[k]))
     }
     /// [`HaltonSampler::value`] of another stream key and index.
     #[inline]
@@ -77,6 +104,9 @@ impl Sampler for HaltonSampler {
     }
     #[inline]
     fn start(&mut self, stream: u64, index: u64) {
+        if stream != self.stream {
+            self.rot_known = 0;
+        }
         restart(self.seed, &mut self.stream, &mut self.key, stream);
         self.index = index;
         self.dim = 0;
@@ -90,13 +120,58 @@ impl Sampler for HaltonSampler {
             *o = self.value_of(key, index, d);
         }
     }
-    super::dimension_methods!();
+    #[inline]
+    fn set_dimension(&mut self, dim: u32) {
+        self.dim = dim;
+    }
+    fn dimension(&self) -> u32 {
+        self.dim
+    }
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        let d = self.dim;
+        self.dim = self.dim.saturating_add(1);
+        self.value_cached(d)
+    }
+    #[inline]
+    fn next_2d(&mut self) -> [f32; 2] {
+        let d = self.dim;
+        self.dim = self.dim.saturating_add(2);
+        [self.value_cached(d), self.value_cached(d.saturating_add(1))]
+    }
+    fn clone_box(&self) -> Box<dyn Sampler> {
+        Box::new(self.clone())
+    }
+    fn to_any(&self) -> Option<super::AnySampler> {
+        Some(super::AnySampler::Halton(self.clone()))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::sampler::PRIMES;
+
+    /// The cached rotations give the values `value` computes, across stream changes,
+    /// dimensions past the table and clones.
+    #[test]
+    fn cached_rotations_equal_computed_values() {
+        let mut s = HaltonSampler::new(3);
+        for (stream, index) in [(0u64, 0u64), (0, 5), (17, 5), (17, 2000), (0, 1), (17, 1)] {
+            s.start(stream, index);
+            let mut c = s.clone();
+            for d in 0..(PRIMES.len() as u32 + 8) {
+                let want = s.value_of(stream_key(3, stream), index, d);
+                let got = if d % 3 == 0 { c.next_2d()[0] } else { c.next_1d() };
+                if d % 3 == 0 {
+                    c.set_dimension(d + 1);
+                }
+                assert_eq!(got.to_bits(), want.to_bits(), "stream {stream} index {index} dim {d}");
+            }
+            s.set_dimension(0);
+            let _ = s.next_2d();
+        }
+    }
 
     #[test]
     fn raw_first_values() {

@@ -72,6 +72,9 @@ impl Sampler for HammersleySampler {
         }
     }
     super::dimension_methods!();
+    fn to_any(&self) -> Option<super::AnySampler> {
+        Some(super::AnySampler::Hammersley(self.clone()))
+    }
 }
 
 #[cfg(test)]

@@ -65,6 +65,11 @@ pub trait Sampler: Send + Sync {
     }
     /// A boxed copy (for per-thread use).
     fn clone_box(&self) -> Box<dyn Sampler>;
+    /// A copy by value as an [`AnySampler`], for loops that dispatch statically
+    /// ([`with_sampler!`]); `None` for samplers that are not one of [`make`]'s.
+    fn to_any(&self) -> Option<AnySampler> {
+        None
+    }
     /// Values of dimensions `dim..dim + out.len()` of sample `index` of `stream`:
     /// what `start(stream, index)`, `set_dimension(dim)` and `out.len()` calls of
     /// `next_1d` would give, without touching this sampler. The gathers draw their
@@ -170,6 +175,10 @@ pub fn make(name: &str, seed: u64, count: Option<u64>) -> Result<Box<dyn Sampler
 /// One sampler of [`make`] by value, for hot loops that run monomorphised per
 /// sampler type (static dispatch: no virtual call per dimension, and the digit
 /// loops inline into the caller): match it with [`with_sampler!`].
+// `halton` carries its stream's 64 rotations (312 bytes): a sampler is made once and
+// cloned once per tile or thread, so the size costs nothing and a box would cost a
+// pointer chase per value.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone)]
 pub enum AnySampler {
     /// `random`.

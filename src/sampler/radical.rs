@@ -6,7 +6,9 @@
 //! index, divides by multiplying with a precomputed reciprocal (exact for indices
 //! below 2^32; larger ones fall back to plain division), allocates nothing and
 //! returns a 32-bit fixed-point fraction, so a Cranley–Patterson rotation is one
-//! wrapping addition.
+//! wrapping addition. The fractions of the first [`SMALL`] indices are kept in a table
+//! (index-major: one sample's dimensions are adjacent), so the sample indices of a
+//! render pass (below the sample count per pixel) are one load each.
 
 use super::PRIMES;
 use crate::math::mix64;
@@ -25,11 +27,16 @@ struct Base {
     flip: bool,
 }
 
+/// Indices whose fractions [`DigitTables`] keeps (all bases): 256 KiB.
+pub const SMALL: u64 = 1024;
+
 /// Digit permutations of the first [`PRIMES`] bases for one seed.
 #[derive(Clone, Debug)]
 pub struct DigitTables {
     bases: Vec<Base>,
     perms: Vec<u16>,
+    /// `fraction(k, i)` at `i * bases.len() + k` for every i < [`SMALL`].
+    small: Vec<u32>,
 }
 
 impl DigitTables {
@@ -57,7 +64,10 @@ impl DigitTables {
             });
             perms.extend_from_slice(&p);
         }
-        DigitTables { bases, perms }
+        let mut t = DigitTables { bases, perms, small: Vec::new() };
+        let n = t.bases.len();
+        t.small = (0..SMALL as usize * n).map(|j| t.digits(j % n, (j / n) as u64)).collect();
+        t
     }
 
     /// Number of bases (dimensions) covered.
@@ -72,8 +82,17 @@ impl DigitTables {
 
     /// Scrambled radical inverse of `index` in base `PRIMES[k]` as a 32-bit fraction
     /// (rounded down). `k < self.len()`.
-    #[inline]
+    #[inline(always)]
     pub fn fraction(&self, k: usize, index: u64) -> u32 {
+        if index < SMALL {
+            return self.small[index as usize * self.bases.len() + k];
+        }
+        self.digits(k, index)
+    }
+
+    /// [`DigitTables::fraction`] computed from the digits of `index`.
+    #[inline(never)]
+    fn digits(&self, k: usize, index: u64) -> u32 {
         let b = self.bases[k];
         if b.base == 2 {
             let x = (index.reverse_bits() >> 32) as u32;
@@ -109,6 +128,22 @@ impl DigitTables {
 mod tests {
     use super::*;
     use crate::sampler::radical_inverse;
+
+    /// The kept fractions are the computed ones, bit for bit (and indices past the
+    /// table are computed).
+    #[test]
+    fn kept_fractions_equal_computed_ones() {
+        for (seed, scramble) in [(0, false), (7, true)] {
+            let t = DigitTables::new(seed, scramble);
+            assert_eq!(t.small.len(), SMALL as usize * PRIMES.len());
+            for (k, base) in PRIMES.iter().enumerate() {
+                for i in (0..SMALL).step_by(7).chain([SMALL - 1]) {
+                    assert_eq!(t.fraction(k, i), t.digits(k, i), "base {base} index {i}");
+                }
+                assert_eq!(t.fraction(k, SMALL), t.digits(k, SMALL));
+            }
+        }
+    }
 
     #[test]
     fn identity_tables_match_the_plain_radical_inverse() {

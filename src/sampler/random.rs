@@ -55,6 +55,9 @@ impl Sampler for RandomSampler {
     fn clone_box(&self) -> Box<dyn Sampler> {
         Box::new(self.clone())
     }
+    fn to_any(&self) -> Option<super::AnySampler> {
+        Some(super::AnySampler::Random(self.clone()))
+    }
     fn values_at(&self, stream: u64, index: u64, dim: u32, out: &mut [f32]) {
         let mut rng = Pcg32::new(hash_words(&[self.seed, stream, index, dim as u64]), 0xDA3E_39CB_94B9_5BDB);
         out.iter_mut().for_each(|o| *o = u32_to_unit(rng.next_u32()));

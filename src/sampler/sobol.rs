@@ -255,6 +255,9 @@ impl Sampler for SobolSampler {
         out.iter_mut().for_each(|o| *o = s.next_1d());
     }
     super::dimension_methods!();
+    fn to_any(&self) -> Option<super::AnySampler> {
+        Some(super::AnySampler::Sobol(self.clone()))
+    }
 }
 
 #[cfg(test)]
