@@ -1,6 +1,6 @@
 //! `photonlab fuzz`: a mutation fuzzer for the input readers — scene TOML, OBJ, MTL,
-//! experiment manifests, Mitsuba XML scenes, PLY meshes and texture images (PNG,
-//! JPEG, EXR) — on stable Rust (no nightly, no sanitizer runtime).
+//! experiment manifests, Mitsuba XML scenes, PLY and serialized meshes and texture
+//! images (PNG, JPEG, EXR) — on stable Rust (no nightly, no sanitizer runtime).
 //!
 //! Seeds are real files (the built-in scenes exported through the scene contract,
 //! the shipped manifests, and any `--corpus` directory); each input is a seed
@@ -54,6 +54,10 @@ pub enum Target {
     Xml,
     /// PLY mesh (`parse_ply`).
     Ply,
+    /// Mitsuba serialized mesh (`parse_serialized`): the input as a file (meshes 0
+    /// and 1) and as the uncompressed body of a one-mesh file, so the mesh reader sees
+    /// corrupt counts and flags, not only a corrupt zlib stream.
+    Serialized,
     /// Texture image (PNG, JPEG or EXR by its magic bytes; `Image::decode`).
     Image,
 }
@@ -243,6 +247,12 @@ fn run_one(target: Target, input: &[u8], scratch: &Path) -> Result<bool> {
             crate::scene::mitsuba::xml::parse_text(&text, &p).and_then(|doc| crate::scene::mitsuba::build(&doc, &p)).map(|_| ())
         }
         Target::Ply => crate::scene::ply::parse_ply(input, &scratch.join("fuzz.ply")).map(|_| ()),
+        Target::Serialized => {
+            use crate::scene::serialized::{parse_serialized, wrap_payloads};
+            let _ = parse_serialized(input, 0);
+            let _ = parse_serialized(input, 1);
+            parse_serialized(&wrap_payloads(&[input.to_vec()]), 0).map(|_| ())
+        }
         // PIZ-compressed EXR is skipped: the exr crate's PIZ decoder allocates what a
         // corrupt Huffman table asks for and aborts (not a panic) — a known limit.
         Target::Image if image_kind(input) == "exr" && exr_is_piz(input) => Err(anyhow::anyhow!("PIZ EXR not fuzzed")),
@@ -272,6 +282,15 @@ fn seeds(scratch: &Path, extra: &[PathBuf]) -> Result<Vec<(Target, Vec<u8>)>> {
     }
     let mut out = vec![(Target::Xml, XML_SEED.as_bytes().to_vec()), (Target::Ply, PLY_SEED.as_bytes().to_vec())];
     {
+        use crate::scene::serialized::{mesh_payload, write_serialized};
+        use glam::{Vec2, Vec3};
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ONE];
+        let (n, uv) = ([Vec3::Z; 4], [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::ONE]);
+        let quad: crate::scene::serialized::MeshSlices = (&p, &n, &uv, &[[0, 1, 2], [1, 3, 2]]);
+        out.push((Target::Serialized, write_serialized(&[(&p[..3], &[], &[], &[[0, 1, 2]]), quad])));
+        out.push((Target::Serialized, mesh_payload(&quad, "quad")));
+    }
+    {
         let mut jpeg = Vec::new();
         let img = image::RgbImage::from_fn(16, 8, |x, y| image::Rgb([(x * 16) as u8, (y * 30) as u8, 128]));
         img.write_to(&mut std::io::Cursor::new(&mut jpeg), image::ImageFormat::Jpeg)?;
@@ -283,6 +302,7 @@ fn seeds(scratch: &Path, extra: &[PathBuf]) -> Result<Vec<(Target, Vec<u8>)>> {
             Some("mtl") => Target::Mtl,
             Some("xml") => Target::Xml,
             Some("ply") => Target::Ply,
+            Some("serialized") => Target::Serialized,
             Some("png" | "jpg" | "jpeg" | "exr") => Target::Image,
             Some("toml") => {
                 let t = std::fs::read_to_string(&f).unwrap_or_default();

@@ -1,7 +1,7 @@
 //! Every integrator agrees with `path` on every Mitsuba material: a box holding a
 //! textured rough-plastic floor, a two-sided rough-plastic back wall, a rough gold
-//! sphere, a smooth plastic sphere, a rough glass cube, a copper block and a cut-out
-//! panel (mask), lit by an area light, written as Mitsuba XML into a tempdir.
+//! sphere, a smooth plastic sphere, a rough glass cube, a copper block, a cut-out
+//! panel (mask) and a thin glass pane (`thindielectric`), lit by an area light, written as Mitsuba XML into a tempdir.
 //!
 //! Each integrator's 16-px block means are compared with a `path` reference: the
 //! unbiased ones (`bdpt`, `vcm` in its `bpt` mode) within a few standard errors, the
@@ -70,6 +70,10 @@ fn scene(dir: &Path, glass_alpha: f32) -> Scene {
         wall(
             r#"<scale x="0.15" y="0.25"/><rotate y="1" angle="-30"/><translate x="0.7" y="-0.75" z="-0.7"/>"#,
             r#"<bsdf type="conductor"><string name="material" value="Cu"/></bsdf>"#,
+        ),
+        wall(
+            r#"<scale x="0.3" y="0.25"/><rotate y="1" angle="-20"/><translate x="0.35" y="0.35" z="-0.4"/>"#,
+            r#"<bsdf type="thindielectric"><float name="int_ior" value="1.5"/></bsdf>"#,
         ),
     ]
     .join("\n");

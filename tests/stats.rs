@@ -71,6 +71,9 @@ fn every_sampling_routine_matches_its_pdf() {
         "planted/roughconductor_flipped_half_vector",
         "planted/roughconductor_ggx_a0.3_vs_pdf_a0.33",
         "planted/roughplastic_lobe_weight",
+        "thindielectric/grazing_cos0.15",
+        "thindielectric/back_cos0.4",
+        "planted/thindielectric_single_interface",
     ] {
         assert!(rows.iter().any(|r| r.test == format!("chi2/{name}")), "missing chi2/{name}");
     }

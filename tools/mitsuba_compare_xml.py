@@ -72,15 +72,21 @@ def main():
     ap.add_argument("-D", action="append", default=[], help="NAME=VALUE for the scene's <default> parameters")
     ap.add_argument("--photonlab", help="photonlab EXR of the same scene and resolution to compare")
     ap.add_argument("--block", type=int, default=16)
+    ap.add_argument("--reuse", action="store_true",
+                    help="read --out if it exists instead of rendering it again (compare more photonlab images)")
     a = ap.parse_args()
     mi, variant = load_mitsuba()
-    params = dict(kv.split("=", 1) for kv in a.D)
-    scene = mi.load_file(a.scene, **params)
-    integrator = mi.load_dict({"type": "path", "max_depth": a.max_depth})
-    img = mi.render(scene, integrator=integrator, spp=a.spp, seed=a.seed)
-    mi.Bitmap(img).write(a.out)
-    ref = np.array(img, dtype=np.float64)
-    print(f"mitsuba {mi.__version__} ({variant}): {a.out}, {ref.shape[1]}x{ref.shape[0]}, {a.spp} spp")
+    if a.reuse and os.path.exists(a.out):
+        ref = read_exr(a.out)
+        print(f"mitsuba reference reused: {a.out}, {ref.shape[1]}x{ref.shape[0]}")
+    else:
+        params = dict(kv.split("=", 1) for kv in a.D)
+        scene = mi.load_file(a.scene, **params)
+        integrator = mi.load_dict({"type": "path", "max_depth": a.max_depth})
+        img = mi.render(scene, integrator=integrator, spp=a.spp, seed=a.seed)
+        mi.Bitmap(img).write(a.out)
+        ref = np.array(img, dtype=np.float64)
+        print(f"mitsuba {mi.__version__} ({variant}): {a.out}, {ref.shape[1]}x{ref.shape[0]}, {a.spp} spp")
     if a.photonlab:
         test = read_exr(a.photonlab)
         if test.shape != ref.shape:

@@ -74,7 +74,10 @@ pub fn parse_serialized(data: &[u8], index: u32) -> Result<PlyMesh> {
     }
     let wide = nv > u32::MAX as usize;
     let has_n = !out.mesh.normals.is_empty();
-    out.mesh.faces.reserve(nt);
+    // The counts come from the file: reserve no more than its data could hold (a
+    // corrupt count of 2³¹ triangles would otherwise ask for tens of gigabytes up
+    // front and abort the process instead of failing with an error).
+    out.mesh.faces.reserve(nt.min(data.len()));
     for t in 0..nt {
         let mut v = [0u32; 3];
         for c in v.iter_mut() {
@@ -162,38 +165,54 @@ impl<R: Read> Reader<'_, R> {
 pub type MeshSlices<'a> = (&'a [Vec3], &'a [Vec3], &'a [Vec2], &'a [[u32; 3]]);
 
 /// Writes meshes in the serialized format (version 4, single precision, with normals
-/// and texture coordinates when given) — for tests.
+/// and texture coordinates when given) — for tests and the fuzzer's seeds.
 pub fn write_serialized(meshes: &[MeshSlices]) -> Vec<u8> {
+    let payloads: Vec<Vec<u8>> = meshes.iter().enumerate().map(|(k, m)| mesh_payload(m, &format!("mesh{k}"))).collect();
+    wrap_payloads(&payloads)
+}
+
+/// The uncompressed body of one version-4 mesh: flags, name, counts, vertex data,
+/// triangles.
+pub fn mesh_payload((p, n, uv, tris): &MeshSlices, name: &str) -> Vec<u8> {
+    let mut raw = Vec::new();
+    let flags = SINGLE | if n.is_empty() { 0 } else { HAS_NORMALS } | if uv.is_empty() { 0 } else { HAS_UVS };
+    raw.extend_from_slice(&flags.to_le_bytes());
+    raw.extend_from_slice(name.as_bytes());
+    raw.push(0);
+    raw.extend_from_slice(&(p.len() as u64).to_le_bytes());
+    raw.extend_from_slice(&(tris.len() as u64).to_le_bytes());
+    for v in p.iter().chain(n.iter()) {
+        v.to_array().iter().for_each(|x| raw.extend_from_slice(&x.to_le_bytes()));
+    }
+    for t in uv.iter() {
+        t.to_array().iter().for_each(|x| raw.extend_from_slice(&x.to_le_bytes()));
+    }
+    for t in tris.iter() {
+        t.iter().for_each(|i| raw.extend_from_slice(&i.to_le_bytes()));
+    }
+    raw
+}
+
+/// A version-4 file holding the given uncompressed mesh bodies (each behind its
+/// header, zlib-compressed), with the dictionary of offsets at the end. The bodies
+/// need not be valid: the fuzzer wraps mutated ones, so that the mesh reader sees
+/// corrupt counts and flags rather than only a corrupt zlib stream.
+pub fn wrap_payloads(payloads: &[Vec<u8>]) -> Vec<u8> {
     use std::io::Write;
     let mut out = Vec::new();
     let mut offsets = Vec::new();
-    for (k, (p, n, uv, tris)) in meshes.iter().enumerate() {
+    for raw in payloads {
         offsets.push(out.len() as u64);
         out.extend_from_slice(&FORMAT_ID.to_le_bytes());
         out.extend_from_slice(&4u16.to_le_bytes());
-        let mut raw = Vec::new();
-        let flags = SINGLE | if n.is_empty() { 0 } else { HAS_NORMALS } | if uv.is_empty() { 0 } else { HAS_UVS };
-        raw.extend_from_slice(&flags.to_le_bytes());
-        raw.extend_from_slice(format!("mesh{k}\0").as_bytes());
-        raw.extend_from_slice(&(p.len() as u64).to_le_bytes());
-        raw.extend_from_slice(&(tris.len() as u64).to_le_bytes());
-        for v in p.iter().chain(n.iter()) {
-            v.to_array().iter().for_each(|x| raw.extend_from_slice(&x.to_le_bytes()));
-        }
-        for t in uv.iter() {
-            t.to_array().iter().for_each(|x| raw.extend_from_slice(&x.to_le_bytes()));
-        }
-        for t in tris.iter() {
-            t.iter().for_each(|i| raw.extend_from_slice(&i.to_le_bytes()));
-        }
         let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
-        e.write_all(&raw).expect("in memory");
+        e.write_all(raw).expect("in memory");
         out.extend(e.finish().expect("in memory"));
     }
     for o in &offsets {
         out.extend_from_slice(&o.to_le_bytes());
     }
-    out.extend_from_slice(&(meshes.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(payloads.len() as u32).to_le_bytes());
     out
 }
 
@@ -222,5 +241,18 @@ mod tests {
         assert!(parse_serialized(&bad, 0).unwrap_err().to_string().contains("format id"));
         let cut = &data[..12];
         assert!(parse_serialized(cut, 0).is_err());
+    }
+
+    /// A body claiming 2³¹ triangles over three vertices and no index data: an error
+    /// (truncated), not a reservation of tens of gigabytes that aborts the process
+    /// (found by `photonlab fuzz` once it mutated the bodies, not only the zlib bytes).
+    #[test]
+    fn a_huge_triangle_count_is_an_error() {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let mut raw = mesh_payload(&(&p[..], &[], &[], &[]), "m");
+        // flags (4) + "m\0" (2) + vertex count (8), then the triangle count.
+        raw[14..22].copy_from_slice(&(1u64 << 31).to_le_bytes());
+        let e = parse_serialized(&wrap_payloads(&[raw]), 0).unwrap_err().to_string();
+        assert!(e.contains("truncated or corrupt"), "{e}");
     }
 }

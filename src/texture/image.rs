@@ -164,4 +164,32 @@ mod tests {
         assert!(Image::decode(b"not an image", "png", false).is_err());
         assert!(Image::decode(b"x", "gif", false).is_err());
     }
+
+    /// A flat JPEG is sRGB-decoded like a PNG (within the codec's rounding of a flat
+    /// colour, ±1 of 255); `raw` keeps the stored values.
+    #[test]
+    fn jpeg_is_srgb_decoded_unless_raw() {
+        let mut buf = Vec::new();
+        let img = image::RgbImage::from_pixel(16, 8, image::Rgb([128, 128, 128]));
+        img.write_to(&mut Cursor::new(&mut buf), image::ImageFormat::Jpeg).unwrap();
+        let a = Image::decode(&buf, "jpg", false).unwrap();
+        assert_eq!((a.width, a.height, a.has_alpha), (16, 8, false));
+        let (lo, hi) = (srgb_to_linear(127.0 / 255.0), srgb_to_linear(129.0 / 255.0));
+        assert!(a.pixels.iter().all(|p| (lo..=hi).contains(&p[0]) && (lo..=hi).contains(&p[2])), "{:?}", a.texel(3, 3));
+        let r = Image::decode(&buf, "jpg", true).unwrap();
+        assert!((r.texel(3, 3)[1] - 128.0 / 255.0).abs() <= 1.0 / 255.0 + 1e-6, "{:?}", r.texel(3, 3));
+    }
+
+    /// EXR values are linear (never sRGB-decoded), HDR values kept, row 0 at the top.
+    #[test]
+    fn exr_is_linear_and_keeps_hdr_values() {
+        let path = std::env::temp_dir().join(format!("photonlab-image-test-{}.exr", std::process::id()));
+        exr::prelude::write_rgb_file(&path, 2, 2, |x, y| if y == 0 { (0.5f32, 4.0f32, 0.0f32) } else { (x as f32, 0.25, 1.0) }).unwrap();
+        let buf = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).ok();
+        let a = Image::decode(&buf, "exr", false).unwrap();
+        assert_eq!(a.texel(0, 0)[..3], [0.5, 4.0, 0.0]);
+        assert_eq!(a.texel(1, 1)[..3], [1.0, 0.25, 1.0]);
+        assert_eq!(Image::decode(&buf, "exr", true).unwrap().texel(0, 0), a.texel(0, 0));
+    }
 }

@@ -6,7 +6,8 @@
 //! adaptive Gauss–Legendre quadrature in (θ, φ) with the sin θ Jacobian, and the
 //! failed-sample bin expects N·(1 − ∫pdf). Bins expecting fewer than 5 samples are
 //! pooled. Discrete choices (glass: reflect with the Fresnel probability or refract;
-//! mirror: always reflect) are tested on their categories. Every p-value is compared
+//! thin glass: reflect with the pane's summed reflectance 2F/(1 + F) or pass straight
+//! through; mirror: always reflect) are tested on their categories. Every p-value is compared
 //! with a Šidák-corrected level that keeps the family-wise level at [`ALPHA`].
 //! Planted controls test correct samples against a wrong pdf; they must fail.
 //! Rows `chi2/sobol/…` draw from the `sobol` sampler at the dimensions the path
@@ -20,7 +21,7 @@ mod lights;
 mod microfacet;
 
 use super::{FamilyReport, Outcome, Settings, TestRow, sidak};
-use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Mirror, ShadingPoint, TransportMode};
+use crate::material::{Bsdf, Dielectric, Glossy, Lambertian, Mirror, ShadingPoint, ThinDielectric, TransportMode};
 use crate::math::{Color, Frame, cosine_hemisphere, cosine_hemisphere_pdf, reflect};
 use crate::plot::{LinePlot, Series};
 use crate::sampler::random::RandomSampler;
@@ -535,7 +536,7 @@ pub fn fresnel(cos_i: f64, eta_i: f64, eta_t: f64) -> f64 {
 /// (always reflect) as discrete choices: (name, observed, expected probabilities).
 /// Samples that are neither the reflection nor the refraction, or that report a
 /// different probability, land in a last category expecting none.
-fn discrete_cases(n: usize) -> Vec<(String, Vec<u64>, Vec<f64>)> {
+fn discrete_cases(n: usize) -> Vec<(String, Outcome, Vec<u64>, Vec<f64>)> {
     let glass = Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::ONE });
     let mirror = Bsdf::Mirror(Mirror { reflectance: Color::splat(0.9) });
     let sp = flat();
@@ -576,9 +577,53 @@ fn discrete_cases(n: usize) -> Vec<(String, Vec<u64>, Vec<f64>)> {
             };
             counts[k] += 1;
         }
-        out.push((name, counts.to_vec(), vec![f as f64, 1.0 - f as f64, 0.0]));
+        out.push((name, Outcome::Pass, counts.to_vec(), vec![f as f64, 1.0 - f as f64, 0.0]));
     }
+    out.extend(thin_cases(n));
     out
+}
+
+/// Mitsuba's `thindielectric` (a pane of index 1.5 in air): the mirror direction with
+/// probability R' = 2F/(1 + F) (every internal reflection summed, F from [`fresnel`]),
+/// else −wo, from either side. Planted: the same samples against a single interface's
+/// F, as a pane that forgot its second face would claim.
+fn thin_cases(n: usize) -> Vec<(String, Outcome, Vec<u64>, Vec<f64>)> {
+    let thin = Bsdf::ThinDielectric(ThinDielectric {
+        int_ior: 1.5,
+        ext_ior: 1.0,
+        specular_reflectance: Color::ONE,
+        specular_transmittance: Color::ONE,
+    });
+    let sp = flat();
+    let cases = [
+        ("chi2/thindielectric/cos0.9", Vec3::new(0.19f32.sqrt(), 0.0, 0.9), false),
+        ("chi2/thindielectric/grazing_cos0.15", Vec3::new((1.0f32 - 0.0225).sqrt(), 0.0, 0.15), false),
+        ("chi2/thindielectric/back_cos0.4", Vec3::new(0.84f32.sqrt(), 0.0, -0.4), false),
+        ("chi2/planted/thindielectric_single_interface", Vec3::new((1.0f32 - 0.0225).sqrt(), 0.0, 0.15), true),
+    ];
+    cases
+        .into_iter()
+        .map(|(name, wo, planted)| {
+            let n_side = if wo.z > 0.0 { Vec3::Z } else { -Vec3::Z };
+            let f = fresnel(wo.z.abs() as f64, 1.0, 1.5);
+            let r = if planted { f } else { 2.0 * f / (1.0 + f) };
+            let refl = reflect(wo, n_side);
+            let mut counts = [0u64; 3];
+            let mut s = RandomSampler::new(SEED ^ 0x7417);
+            for i in 0..n {
+                s.start(0, i as u64);
+                let ul = s.next_1d();
+                let k = match thin.sample(&sp, wo, ul, [0.5, 0.5], TransportMode::Radiance) {
+                    Some(x) if (x.wi - refl).length() < 1e-4 => 0,
+                    Some(x) if (x.wi + wo).length() < 1e-4 => 1,
+                    _ => 2,
+                };
+                counts[k] += 1;
+            }
+            let expected = if planted { Outcome::Fail } else { Outcome::Pass };
+            (name.to_string(), expected, counts.to_vec(), vec![r, 1.0 - r, 0.0])
+        })
+        .collect()
 }
 
 /// Runs the family.
@@ -605,14 +650,14 @@ pub fn run(s: &Settings) -> Result<FamilyReport> {
     let (_, scene, lights, q) = area_emission_case()?;
     let (o, e) = area_emission_positions(&scene, &lights, q, n);
     results.push(("chi2/emit/area/position".into(), Outcome::Pass, chi2_test(&o, &e)));
-    for (name, obs, probs) in discrete_cases(n / 5) {
+    for (name, expected, obs, probs) in discrete_cases(n / 5) {
         let total: u64 = obs.iter().sum();
         let exp: Vec<f64> = probs.iter().map(|p| p * total as f64).collect();
         // An outcome of probability zero (wrong direction or probability, refraction
         // under total internal reflection) must never occur.
         let impossible = obs.iter().zip(&probs).any(|(&o, &p)| p == 0.0 && o > 0);
         let c = if impossible { Chi2 { stat: f64::INFINITY, df: 1, p: 0.0 } } else { chi2_test(&obs, &exp) };
-        results.push((name, Outcome::Pass, c));
+        results.push((name, expected, c));
     }
     let alpha = sidak(ALPHA, results.len());
     let rows = results
