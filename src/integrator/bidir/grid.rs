@@ -37,7 +37,7 @@ pub struct HashGrid {
     scratch: Vec<u32>,
 }
 
-/// a mod d for any 32-bit a and d ≥ 1, with `magic` = ⌊(2⁶⁴ − 1) / d⌋ + 1 (Lemire,
+/// a mod d for any 32-bit a and d ≥ 1, with `magic` = ⌊(2⁶⁴ − 1) / d⌋ + 1 mod 2⁶⁴ (Lemire,
 /// Kaser & Kurz, "Faster remainder by direct computation", 2019: exact for 32-bit
 /// operands).
 #[inline]
@@ -59,7 +59,7 @@ impl HashGrid {
         self.cell = 2.0 * r;
         self.lo = lo;
         self.buckets = (n as u32).max(1);
-        self.magic = u64::MAX / self.buckets as u64 + 1;
+        self.magic = (u64::MAX / self.buckets as u64).wrapping_add(1);
         self.starts.clear();
         self.starts.resize(n + 1, 0);
         self.keys.clear();
@@ -167,7 +167,7 @@ mod tests {
             r#as.push(s as u32);
         }
         for &d in &ds {
-            let magic = u64::MAX / d as u64 + 1;
+            let magic = (u64::MAX / d as u64).wrapping_add(1);
             for &a in &r#as {
                 assert_eq!(fast_mod(a, d, magic), a % d, "{a} mod {d}");
             }
