@@ -127,7 +127,9 @@
   const legend = el("div", { id: "pl-legend" });
   const canvas = el("canvas", { id: "pl-canvas" });
   const status = el("div", { id: "pl-status" });
-  main.append(controls, canvas, status, legend);
+  const strategiesBox = el("div", { id: "pl-strategies" });
+  strategiesBox.hidden = true;
+  main.append(controls, canvas, status, legend, strategiesBox);
 
   function cur() { return D.cells[st.cell]; }
   function refOf(c) { return D.references[c.scene] || D.references[0]; }
@@ -274,6 +276,32 @@
       `<p><b>${c.label}</b>, repeat ${c.repeat}<br><code>${c.id}</code></p><table>${m}` +
       `<tr><td>reference noise (relMSE)</td><td>${noise}</td></tr>${comp}</table>` +
       `<p><a href="${c.png}">PNG</a> · <a href="${c.relerr}">|error|</a> · <a href="${c.signed}">signed</a> · <a href="${r.png}">reference</a></p>`;
+    showStrategies(c);
+  }
+
+  // Per-strategy images of bidirectional cells: one row per (s, t) technique, its
+  // weighted contribution (what it adds to the image) beside the technique alone
+  // (unweighted), then vcm's merging part. PNGs, each a link to itself.
+  function showStrategies(c) {
+    const box = document.getElementById("pl-strategies");
+    const list = c.strategies || [];
+    box.hidden = list.length === 0;
+    if (list.length === 0) { box.innerHTML = ""; return; }
+    const byName = {};
+    list.forEach((x) => { byName[x.name] = x; });
+    const img = (x) => x ? `<a href="${x.png}"><img class="pl-strategy" src="${x.png}" alt="${x.name}" title="${x.name}" data-name="${x.name}"></a>` : "";
+    const rows = list.filter((x) => /^s\d+-t\d+$/.test(x.name)).map((x) => {
+      const [s, t] = x.name.slice(1).split("-t").map(Number);
+      return { s, t, name: x.name };
+    }).sort((a, b) => (a.s + a.t) - (b.s + b.t) || a.s - b.s);
+    let html = `<h3>Strategies of <code>${c.id}</code></h3><p>s light vertices, t camera vertices (path length s + t − 1 edges); ` +
+      `weighted: the technique's share of the image; unweighted: the technique alone (a full estimate of that path length).</p>` +
+      `<table><tr><th>technique</th><th>weighted</th><th>unweighted</th></tr>`;
+    rows.forEach((r) => {
+      html += `<tr data-strategy="${r.name}"><td>s = ${r.s}, t = ${r.t}</td><td>${img(byName[r.name])}</td><td>${img(byName[r.name + "-unweighted"])}</td></tr>`;
+    });
+    if (byName.merge) html += `<tr data-strategy="merge"><td>merging</td><td>${img(byName.merge)}</td><td></td></tr>`;
+    box.innerHTML = html + "</table>";
   }
 
   function setLegend() {
@@ -371,14 +399,21 @@
       setMode(st.mode);
       select(start);
       const sel = document.querySelector("#pl-cells tr.sel");
+      const strat = Array.from(document.querySelectorAll("#pl-strategies img"));
       const res = {
         done: true, page_images: pageImgs.length, page_images_failed: bad, cells: D.cells.length,
         cells_checked: selftest.checked, comp_checked: selftest.comp_checked, failed: selftest.failed,
         selected: sel ? sel.id.replace(/^pl-row-/, "") : null, mode: st.mode,
+        strategies_shown: strat.map((im) => im.dataset.name),
       };
-      out.textContent = JSON.stringify(res);
-      out.hidden = false;
-      document.body.setAttribute("data-selftest", bad.length === 0 && selftest.failed.length === 0 ? "pass" : "fail");
+      // The selected cell's strategy images, once they have loaded.
+      whenImagesLoaded(() => {
+        res.strategies_failed = strat.filter((im) => !(im.complete && im.naturalWidth > 0)).map((im) => im.getAttribute("src"));
+        out.textContent = JSON.stringify(res);
+        out.hidden = false;
+        const ok = bad.length === 0 && selftest.failed.length === 0 && res.strategies_failed.length === 0;
+        document.body.setAttribute("data-selftest", ok ? "pass" : "fail");
+      });
     };
     const whenImagesLoaded = (cb) => {
       const pending = Array.from(document.images).filter((im) => !im.complete);

@@ -1,7 +1,7 @@
 //! One cell: render a configuration, time it, measure it against the reference, and
 //! write its image, error image and record. Also the error metrics themselves.
 
-use super::manifest::Cell;
+use super::manifest::{Cell, STRATEGIES_AOV};
 use crate::config::RenderConfig;
 use crate::film::{Film, write_atomic};
 use crate::pipeline::render_scene_observed;
@@ -192,6 +192,11 @@ pub struct CellRecord {
     /// Errors of the measured component (manifest `component`), if any.
     #[serde(default)]
     pub component: Option<super::metrics::ComponentMetrics>,
+    /// Names of the per-strategy images written (`cells/STEM.strategies-NAME.{exr,png}`:
+    /// `sS-tT`, `sS-tT-unweighted`, `merge`) when the manifest asked for them and the
+    /// integrator has them; `None` when not rendered.
+    #[serde(default)]
+    pub strategies: Option<Vec<String>>,
     /// Acceleration-structure build, seconds.
     pub accel_build_s: f64,
     /// Integrator pre-pass (photon pass, precomputation, cache prefill), seconds.
@@ -235,6 +240,12 @@ pub struct CellPaths {
 }
 
 impl CellPaths {
+    /// Linear and sRGB paths of the per-strategy image `name` (`s1-t2`, `merge`, …).
+    pub fn strategy(&self, name: &str) -> (PathBuf, PathBuf) {
+        let base = format!("{STRATEGIES_AOV}-{name}");
+        (self.exr.with_extension(format!("{base}.exr")), self.exr.with_extension(format!("{base}.png")))
+    }
+
     /// Paths for a cell stem under an experiment directory.
     pub fn new(dir: &Path, stem: &str) -> Self {
         let d = dir.join("cells");
@@ -254,7 +265,12 @@ pub fn finished(dir: &Path, cell: &Cell, reference_key: &str) -> Option<CellReco
     let p = CellPaths::new(dir, &cell.stem);
     let text = std::fs::read_to_string(&p.json).ok()?;
     let rec: CellRecord = serde_json::from_str(&text).ok()?;
-    (rec.cell == cell.stem && rec.config == cell.config && rec.reference_key == reference_key && p.exr.is_file()).then_some(rec)
+    (rec.cell == cell.stem
+        && rec.config == cell.config
+        && rec.reference_key == reference_key
+        && p.exr.is_file()
+        && (!cell.strategies || rec.strategies.is_some()))
+    .then_some(rec)
 }
 
 /// Renders one cell, writes its images and then its record (atomically, last).
@@ -277,15 +293,34 @@ pub fn run_cell(
             progress.push((p, t, e));
         }
     };
-    let aovs: Vec<String> = cell.component.iter().cloned().collect();
+    let mut aovs: Vec<String> = cell.component.iter().cloned().collect();
+    if cell.strategies {
+        aovs.push(STRATEGIES_AOV.to_string());
+    }
     let mut o =
         render_scene_observed(scene.clone(), &cell.config, quiet, &aovs, &mut on_pass).with_context(|| format!("cell `{}`", cell.stem))?;
     for (p, t, e) in progress {
         o.extra.insert(format!("{PASS_TIME}{p}"), o.timings.accel_build_s + o.timings.preprocess_s + t);
         o.extra.insert(format!("{PASS_RELMSE}{p}"), e.relmse);
     }
+    // Per-strategy images (an extra, untimed render after the timed one).
+    let paths = CellPaths::new(dir, &cell.stem);
+    let prefix = format!("{STRATEGIES_AOV}-");
+    let mut strategies = cell.strategies.then(Vec::new);
+    let mut comp_img = None;
+    for (name, img) in std::mem::take(&mut o.aovs) {
+        match (name.strip_prefix(&prefix), strategies.as_mut()) {
+            (Some(n), Some(list)) => {
+                let (exr, png) = paths.strategy(n);
+                img.write_exr(&exr)?;
+                img.write_png(&png)?;
+                list.push(n.to_string());
+            }
+            _ => comp_img = Some((name, img)),
+        }
+    }
     // The measured component (an extra render pass after the timed one).
-    let component = match (o.aovs.pop(), component_ref) {
+    let component = match (comp_img, component_ref) {
         (Some((name, img)), Some(r)) => {
             img.write_exr(&CellPaths::new(dir, &cell.stem).exr.with_extension(format!("{name}.exr")))?;
             Some(super::metrics::component_metrics(&name, &img, r)?)
@@ -293,7 +328,6 @@ pub fn run_cell(
         _ => None,
     };
     let metrics = error_metrics(&o.film, reference).with_context(|| format!("cell `{}`", cell.stem))?;
-    let paths = CellPaths::new(dir, &cell.stem);
     o.film.write_exr(&paths.exr)?;
     o.film.write_png(&paths.png)?;
     write_atomic(&paths.relerr, &relerr_png(&o.film, reference)?)?;
@@ -315,6 +349,7 @@ pub fn run_cell(
         metrics,
         robust,
         component,
+        strategies,
         accel_build_s: t.accel_build_s,
         preprocess_s: t.preprocess_s,
         render_s: t.render_s,

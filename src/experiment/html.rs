@@ -105,6 +105,16 @@ pub fn write_report(dir: &Path, info: &SummaryInfo, rows: &[Row], summary_md: &s
             Some(k) => Some(view_component(dir, &p.exr.with_extension(format!("{k}.exr")), &format!("{}.{k}", c.cell))?),
             None => None,
         };
+        // Per-strategy images (PNG), when the cell wrote them.
+        let strategies: Vec<serde_json::Value> = c
+            .strategies
+            .iter()
+            .flatten()
+            .map(|n| {
+                let png = p.strategy(n).1.file_name().map(|f| format!("cells/{}", f.to_string_lossy())).unwrap_or_default();
+                json!({"name": n, "png": png})
+            })
+            .collect();
         cells.push(json!({
             "id": c.cell, "label": c.label, "repeat": c.repeat, "scene": scene, "js": js,
             "png": rel("png"), "relerr": rel("relerr.png"), "signed": rel("signed.png"),
@@ -117,7 +127,7 @@ pub fn write_report(dir: &Path, info: &SummaryInfo, rows: &[Row], summary_md: &s
                 ["worst block at", c.robust.worst_block_at], ["worst pixel share", c.robust.max_pixel_share],
                 ["time (s)", c.time_total_s], ["seed", c.seed],
             ],
-            "component": c.component, "comp": comp,
+            "component": c.component, "comp": comp, "strategies": strategies,
         }));
     }
     let data = json!({

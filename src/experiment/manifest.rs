@@ -46,6 +46,7 @@ struct RawManifest {
     sweep: Option<Spanned<SpannedTable>>,
     configs: Option<Spanned<Vec<Spanned<SpannedTable>>>>,
     component: Option<Spanned<String>>,
+    strategies: Option<Spanned<bool>>,
 }
 
 /// Where the reference image comes from.
@@ -80,6 +81,9 @@ pub struct Cell {
     pub config: RenderConfig,
     /// The part of the image measured (`direct`, `indirect`, `caustic`), if not all.
     pub component: Option<String>,
+    /// Whether the cell also writes its per-strategy images (manifest `strategies`,
+    /// for integrators that have them: an extra, untimed render).
+    pub strategies: bool,
 }
 
 /// A parsed, validated and expanded manifest.
@@ -112,6 +116,9 @@ pub struct Manifest {
     /// `component`: the part of the image measured, rendered as the integrators'
     /// extra image of that name, for the cells and the reference alike.
     pub component: Option<String>,
+    /// `strategies = true`: cells whose integrator has per-strategy images (`--aov
+    /// strategies`) write them, and the report shows them.
+    pub strategies: bool,
 }
 
 pub use crate::scene::loader::line_col;
@@ -169,6 +176,26 @@ fn check_component(c: &Spanned<String>, loc: &Loc, configs: &[(String, RenderCon
         integ.set_output(name).map_err(|e| anyhow!("{at}: component `{name}`: {e:#}"))?;
     }
     Ok(name.clone())
+}
+
+/// The extra image of per-technique contributions (bidirectional integrators).
+pub const STRATEGIES_AOV: &str = "strategies";
+
+/// For `strategies = true`: which configurations' integrators write per-strategy
+/// images (at least one must).
+fn check_strategies(s: &Spanned<bool>, loc: &Loc, configs: &[(String, RenderConfig)]) -> Result<Vec<bool>> {
+    if !*s.get_ref() {
+        return Ok(vec![false; configs.len()]);
+    }
+    let mut has = Vec::with_capacity(configs.len());
+    for (_, cfg) in configs {
+        let mut integ = registry::make_integrator_with(cfg, true).map_err(|e| anyhow!("{}: {e:#}", loc.at(s.span())))?;
+        has.push(integ.set_output(STRATEGIES_AOV).is_ok());
+    }
+    if !has.contains(&true) {
+        bail!("{}: strategies = true, but no configuration's integrator writes per-strategy images (bdpt and vcm do)", loc.at(s.span()));
+    }
+    Ok(has)
 }
 
 /// Checks one key/value pair: a common key of [`RenderConfig`] or a parameter some
@@ -374,6 +401,10 @@ impl Manifest {
             Some(c) => Some(check_component(c, &loc, &configs, &reference)?),
             None => None,
         };
+        let strategies = match &raw.strategies {
+            Some(s) => check_strategies(s, &loc, &configs)?,
+            None => vec![false; configs.len()],
+        };
         let mut cells = Vec::new();
         for (si, sc) in scenes.iter().enumerate() {
             for (di, (d, (stem, cfg))) in drafts.iter().zip(&configs).enumerate() {
@@ -399,6 +430,7 @@ impl Manifest {
                         repeat: r,
                         config: c,
                         component: component.clone(),
+                        strategies: strategies[di],
                     });
                 }
             }
@@ -424,6 +456,7 @@ impl Manifest {
             repeats,
             cells,
             component,
+            strategies: strategies.contains(&true),
         })
     }
 

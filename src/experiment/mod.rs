@@ -535,20 +535,26 @@ pub fn import_cells(dir: &Path, from: &Path) -> Result<usize> {
     let mut n = 0;
     for c in &m.cells {
         let Some(r) = info.references.get(c.scene) else { continue };
-        if finished(dir, c, &r.key).is_some() || finished(from, c, &r.key).is_none() {
+        if finished(dir, c, &r.key).is_some() {
             continue;
         }
+        let Some(rec) = finished(from, c, &r.key) else { continue };
         let (src, dst) = (CellPaths::new(from, &c.stem), CellPaths::new(dir, &c.stem));
         let comp = |p: &CellPaths| m.component.as_ref().map_or_else(|| p.exr.clone(), |c| p.exr.with_extension(format!("{c}.exr")));
         let (sc, dc) = (comp(&src), comp(&dst));
-        for (a, b) in [
-            (&src.exr, &dst.exr),
-            (&src.png, &dst.png),
-            (&src.relerr, &dst.relerr),
-            (&src.signed, &dst.signed),
-            (&sc, &dc),
-            (&src.json, &dst.json),
-        ] {
+        let mut files = vec![
+            (src.exr.clone(), dst.exr.clone()),
+            (src.png.clone(), dst.png.clone()),
+            (src.relerr.clone(), dst.relerr.clone()),
+            (src.signed.clone(), dst.signed.clone()),
+            (sc, dc),
+        ];
+        for name in rec.strategies.iter().flatten() {
+            let (a, b) = (src.strategy(name), dst.strategy(name));
+            files.extend([(a.0, b.0), (a.1, b.1)]);
+        }
+        files.push((src.json.clone(), dst.json.clone()));
+        for (a, b) in &files {
             if a.is_file() {
                 let bytes = std::fs::read(a).with_context(|| format!("{}: cannot read", a.display()))?;
                 write_atomic(b, &bytes)?;

@@ -41,13 +41,14 @@ impl BdptIntegrator {
         let ctx = Ctx::new(world, self.h, Mode::parse("bpt")?, self.cfg.depth_limit(), self.rr.as_ref(), 1.0);
         let cam_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, Some(spp as u64))?;
         let light_sampler = cam_sampler.clone();
+        let mut grid = super::grid::HashGrid::default();
         let mut sum = vec![DVec3::ZERO; (w * h) as usize];
         let mut stats = RenderStats::default();
         let mut strategies = Strategies::default();
         let (mut t_light, mut t_eye, mut vertices) = (0.0, 0.0, 0u64);
         let pb = crate::progress::progress_bar(spp as u64, self.quiet, "bdpt");
         for i in 0..spp {
-            let out = run_pass(&ctx, &cam_sampler, &light_sampler, i as u64, record);
+            let out = run_pass(&ctx, &cam_sampler, &light_sampler, i as u64, record, &mut grid);
             for (s, p) in sum.iter_mut().zip(&out.pixels) {
                 *s += *p;
             }
@@ -86,7 +87,12 @@ impl crate::integrator::Integrator for BdptIntegrator {
     ) -> crate::math::Color {
         crate::math::Color::ZERO
     }
+    /// `strategies` is rendered by [`crate::integrator::Integrator::render_aov`]; accepted here so
+    /// front ends can ask which integrators have it.
     fn set_output(&mut self, aov: &str) -> Result<()> {
+        if aov == "strategies" {
+            return Ok(());
+        }
         anyhow::bail!("integrator `bdpt` has no extra image `{aov}` (known: strategies)")
     }
     fn render_progressive(

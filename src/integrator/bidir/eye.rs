@@ -265,25 +265,30 @@ fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, 
     let r2 = ctx.radius * ctx.radius;
     let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
     let mut sum = Color::ZERO;
-    m.grid.for_each_candidate(it.p, |i| {
-        let v = &m.vertices[i as usize];
-        if v.len + len > ctx.max_len || v.it.p.distance_squared(it.p) > r2 {
-            return;
+    m.grid.for_each_bucket(it.p, |slots| {
+        for k in m.grid.keys(slots) {
+            if k.p.distance_squared(it.p) > r2 {
+                continue;
+            }
+            let v = &m.vertices[k.index as usize];
+            if v.len + len > ctx.max_len {
+                continue;
+            }
+            // The light arrived on the camera vertex's side of a surface facing like it.
+            if v.it.sp.ng.dot(n).abs() < MERGE_NORMAL_COS || v.w_prev.dot(n) <= 0.0 {
+                continue;
+            }
+            let f = bsdf.eval(&it.sp, wo, v.w_prev);
+            if f.max_element() <= 0.0 {
+                continue;
+            }
+            let w = if ctx.mode.ppm {
+                1.0
+            } else {
+                weight_merge(&ctx.f, &v.partials, cam, bsdf.pdf(&it.sp, wo, v.w_prev), bsdf.pdf(&it.sp, v.w_prev, wo))
+            };
+            sum += f * v.throughput * w;
         }
-        // The light arrived on the camera vertex's side of a surface facing like it.
-        if v.it.sp.ng.dot(n).abs() < MERGE_NORMAL_COS || v.w_prev.dot(n) <= 0.0 {
-            return;
-        }
-        let f = bsdf.eval(&it.sp, wo, v.w_prev);
-        if f.max_element() <= 0.0 {
-            return;
-        }
-        let w = if ctx.mode.ppm {
-            1.0
-        } else {
-            weight_merge(&ctx.f, &v.partials, cam, bsdf.pdf(&it.sp, wo, v.w_prev), bsdf.pdf(&it.sp, v.w_prev, wo))
-        };
-        sum += f * v.throughput * w;
     });
     sum
 }

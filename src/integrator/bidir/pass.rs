@@ -12,7 +12,7 @@ use super::subpath::{LightVertex, Splat, trace_light};
 use crate::accel::TraversalStats;
 use crate::math::{Color, hash_words, is_finite};
 use crate::sampler::AnySampler;
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -83,8 +83,9 @@ struct LightRow {
     stats: TraversalStats,
 }
 
-/// Runs pass `index` (the sample index of every pixel's camera and light streams).
-pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler, index: u64, record: bool) -> PassOut {
+/// Runs pass `index` (the sample index of every pixel's camera and light streams),
+/// merging through `grid` (rebuilt here when merging; its buffers kept for the next pass).
+pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler, index: u64, record: bool, grid: &mut HashGrid) -> PassOut {
     let cam = &ctx.world.scene.camera;
     let (w, h) = (cam.width, cam.height);
     let t0 = Instant::now();
@@ -114,17 +115,16 @@ pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler,
     let mut out = PassOut { t_light: t0.elapsed().as_secs_f64(), ..Default::default() };
     out.light_vertices = rows.iter().map(|r| r.vertices.len() as u64).sum();
     let t1 = Instant::now();
-    let (all, grid) = if ctx.mode.merge {
-        let mut all = Vec::with_capacity(out.light_vertices as usize);
+    let mut all = Vec::new();
+    if ctx.mode.merge {
+        all.reserve(out.light_vertices as usize);
         for r in &rows {
             all.extend_from_slice(&r.vertices);
         }
-        let grid = HashGrid::build(all.iter().map(|v| v.it.p), ctx.radius);
-        (all, grid)
-    } else {
-        (Vec::new(), HashGrid::default())
-    };
-    let merge = ctx.mode.merge.then_some(MergeSet { vertices: &all, grid: &grid });
+        let points: Vec<Vec3> = all.iter().map(|v| v.it.p).collect();
+        grid.build(&points, ctx.radius);
+    }
+    let merge = ctx.mode.merge.then_some(MergeSet { vertices: &all, grid: &*grid });
     out.t_grid = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
     let eye_rows: Vec<(Vec<DVec3>, TraversalStats, u64, Vec<Item>)> = rows

@@ -89,6 +89,7 @@ impl VcmIntegrator {
         let counts = (budget.max_passes != u32::MAX).then_some(budget.max_passes as u64);
         let cam_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, counts)?;
         let light_sampler = cam_sampler.clone();
+        let mut grid = super::grid::HashGrid::default();
         let r0 = self.radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius);
         let mut sum = vec![DVec3::ZERO; npix];
         let mut pass = 0u32;
@@ -108,7 +109,7 @@ impl VcmIntegrator {
         while budget.more(pass) {
             let r = Self::radius(r0, self.alpha, pass + 1);
             let ctx = Ctx::new(world, self.h, self.mode, self.cfg.depth_limit(), self.rr.as_ref(), r);
-            let out = run_pass(&ctx, &cam_sampler, &light_sampler, pass as u64, record);
+            let out = run_pass(&ctx, &cam_sampler, &light_sampler, pass as u64, record, &mut grid);
             for (s, p) in sum.iter_mut().zip(&out.pixels) {
                 *s += *p;
             }
@@ -167,7 +168,12 @@ impl crate::integrator::Integrator for VcmIntegrator {
     fn is_progressive(&self) -> bool {
         true
     }
+    /// `strategies` is rendered by [`crate::integrator::Integrator::render_aov`]; accepted here so
+    /// front ends can ask which integrators have it.
     fn set_output(&mut self, aov: &str) -> Result<()> {
+        if aov == "strategies" {
+            return Ok(());
+        }
         anyhow::bail!("integrator `vcm` has no extra image `{aov}` (known: strategies)")
     }
     fn render_progressive(&mut self, world: &World, on_pass: OnPass) -> Option<Result<(Film, RenderStats)>> {
