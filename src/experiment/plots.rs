@@ -80,20 +80,36 @@ pub fn noise_bands(refs: &[RefInfo]) -> Vec<Band> {
         .collect()
 }
 
-/// Draws every plot the data supports; returns (title, relative PNG path) pairs.
-pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats], refs: &[RefInfo]) -> Result<Vec<(String, String)>> {
-    let pdir = dir.join("plots");
-    let mut out = Vec::new();
-    let bands = noise_bands(refs);
+/// The scene a configuration ran on, when the manifest has several.
+fn scene_of(c: &ConfigStats) -> Option<&str> {
+    c.values.get("scene").and_then(|v| v.as_str())
+}
 
-    // Error vs time, one line per strategy (points along the numeric axes).
+/// The scenes of a multi-scene experiment in first-seen order (empty with one scene).
+fn scenes(stats: &[ConfigStats]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for sc in stats.iter().filter_map(scene_of) {
+        if !out.iter().any(|s| s == sc) {
+            out.push(sc.to_string());
+        }
+    }
+    out
+}
+
+/// A scene name as a file-name part: anything but letters, digits, `-` and `_` becomes `_`.
+fn file_safe(name: &str) -> String {
+    name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
+}
+
+/// Relative MSE against time, one line per strategy group (a progressive cell adds its
+/// recorded passes), on log axes where every value is positive.
+fn error_vs_time(stem: &Path, title: &str, stats: &[ConfigStats], bands: &[Band]) -> Result<()> {
     let mut groups: BTreeMap<String, Vec<(f64, f64)>> = BTreeMap::new();
     let mut order: Vec<String> = Vec::new();
     for c in stats {
         if !groups.contains_key(&c.group) {
             order.push(c.group.clone());
         }
-        // Progressive cells add their recorded passes: one run, a whole curve.
         let curve = super::cell::pass_curve(&c.extra);
         let g = groups.entry(c.group.clone()).or_default();
         g.extend(curve.iter().map(|&(_, t, e)| (t, e)));
@@ -107,24 +123,44 @@ pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats], refs: &[RefIn
             Series { name: g.clone(), points: p }
         })
         .collect();
-    let title = "Relative MSE vs render time".to_string();
     let (log_x, log_y) = (
         log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.0))),
         log_ok(series.iter().flat_map(|s| s.points.iter().map(|p| p.1))),
     );
     line_plot_with_bands(
-        &pdir.join("error_vs_time"),
+        stem,
         &LinePlot {
-            title: format!("{}: {title}", m.name),
+            title: title.to_string(),
             x_label: format!("time: accel build + pre-pass + render (s{})", if log_x { ", log" } else { "" }),
             y_label: format!("relative MSE vs reference (1{})", if log_y { ", log" } else { "" }),
             log_x,
             log_y,
             series,
         },
-        &bands,
+        bands,
     )?;
-    out.push((title, "plots/error_vs_time.png".into()));
+    Ok(())
+}
+
+/// Draws every plot the data supports; returns (title, relative PNG path) pairs.
+pub fn make_plots(dir: &Path, m: &Manifest, stats: &[ConfigStats], refs: &[RefInfo]) -> Result<Vec<(String, String)>> {
+    let pdir = dir.join("plots");
+    let mut out = Vec::new();
+    let bands = noise_bands(refs);
+
+    // Error vs time, one line per strategy (points along the numeric axes); with
+    // several scenes, also one plot per scene with only that scene's noise floor.
+    let title = "Relative MSE vs render time".to_string();
+    error_vs_time(&pdir.join("error_vs_time"), &format!("{}: {title}", m.name), stats, &bands)?;
+    out.push((title.clone(), "plots/error_vs_time.png".into()));
+    let all_scenes = scenes(stats);
+    for scene in all_scenes.iter().filter(|_| all_scenes.len() > 1) {
+        let of_scene: Vec<ConfigStats> = stats.iter().filter(|c| scene_of(c) == Some(scene)).cloned().collect();
+        let ref_of_scene: Vec<RefInfo> = refs.iter().filter(|r| &r.scene == scene).cloned().collect();
+        let stem = format!("error_vs_time-{}", file_safe(scene));
+        error_vs_time(&pdir.join(&stem), &format!("{}: {title}, {scene}", m.name), &of_scene, &noise_bands(&ref_of_scene))?;
+        out.push((format!("{title}: {scene}"), format!("plots/{stem}.png")));
+    }
 
     // Error vs each numeric axis; one line per combination of the other axes, with
     // the least-squares log–log slope in the legend.
@@ -340,5 +376,52 @@ mod tests {
         let low = svg_of(&[reference("low", Some(1e-5)), reference("b", Some(1e-5)), reference("c", Some(1e-5))]);
         assert!(translucent(&low) >= 1, "a floor below the points is still drawn");
         assert_eq!(noise_bands(&[reference("x", Some(0.0)), reference("y", Some(f64::NAN))]).len(), 0);
+    }
+
+    /// With several scenes, each gets its own error-vs-time plot holding only its
+    /// configurations and its own reference's noise floor (the combined plot stays).
+    #[test]
+    fn several_scenes_get_one_error_plot_each() {
+        let tmp = tempfile::tempdir().unwrap();
+        let m = Manifest::parse(
+            "scene = [\"cornell\", \"door-ajar\"]\nresolution = [8, 8]\n[reference]\nspp = 4\n[base]\nspp = 1\n",
+            Path::new("m.toml"),
+            Path::new("."),
+        )
+        .unwrap();
+        let stats: Vec<ConfigStats> = [("cornell", "path", 1.0, 1e-2), ("cornell", "vcm", 2.0, 2e-2), ("door-ajar", "bdpt", 3.0, 5e-2)]
+            .iter()
+            .enumerate()
+            .map(|(i, &(scene, g, t, e))| {
+                let mut c = config(i, &format!("scene={scene} {g}"), t, e);
+                c.values.insert("scene".into(), serde_json::json!(scene));
+                c
+            })
+            .collect();
+        let reference = |scene: &str, noise: f64| RefInfo {
+            scene: scene.into(),
+            key: "k".into(),
+            description: String::new(),
+            file: String::new(),
+            noise_relmse: Some(noise),
+            component_file: None,
+            component_noise_relmse: None,
+        };
+        let plots = make_plots(tmp.path(), &m, &stats, &[reference("cornell", 1e-3), reference("door-ajar", 4e-3)]).unwrap();
+        let paths: Vec<&str> = plots.iter().map(|(_, p)| p.as_str()).collect();
+        for p in ["plots/error_vs_time.png", "plots/error_vs_time-cornell.png", "plots/error_vs_time-door-ajar.png"] {
+            assert!(paths.contains(&p), "{p} missing from {paths:?}");
+            assert!(tmp.path().join(p).is_file(), "{p} not written");
+        }
+        let svg = |n: &str| std::fs::read_to_string(tmp.path().join(format!("plots/{n}.svg"))).unwrap();
+        let (all, cornell, door) = (svg("error_vs_time"), svg("error_vs_time-cornell"), svg("error_vs_time-door-ajar"));
+        assert!(all.contains("scene=cornell vcm") && all.contains("scene=door-ajar bdpt"));
+        assert!(cornell.contains("scene=cornell vcm") && !cornell.contains("scene=door-ajar bdpt"));
+        assert!(door.contains("scene=door-ajar bdpt") && !door.contains("scene=cornell path"));
+        assert!(cornell.contains("noise of the cornell reference") && !cornell.contains("noise of the door-ajar reference"));
+        // One scene: no per-scene copy.
+        let one = tempfile::tempdir().unwrap();
+        let plots = make_plots(one.path(), &m, &stats[..2], &[]).unwrap();
+        assert!(!plots.iter().any(|(_, p)| p.contains("error_vs_time-")), "{plots:?}");
     }
 }
