@@ -98,7 +98,7 @@ pub fn precompute(world: &World, global: &PhotonGrid, stride: usize, prm: &Estim
         .map(|i| {
             let (n, pos) = (global.normal(i), global.position(i));
             let mut stats = TraversalStats::default();
-            with_heap(|h| estimate::irradiance_covered(world, global, pos, n, prm, h, &mut stats))
+            with_heap(|h| estimate::irradiance_covered(world, global, pos, n, Some(i as u32), prm, h, &mut stats))
         })
         .collect();
     let m = irradiance.len();

@@ -396,7 +396,8 @@ impl SppmIntegrator {
 
             let t2 = Instant::now();
             if cam_pass.r_max > 0.0 && kept > 0 {
-                phases.gather_update(pass, cam_pass.r_max, &traced, &vps, &mut pixels, &mut gather);
+                // The gather's own rays (area probes, side tests) count with the rest.
+                stats.traversal.add(&phases.gather_update(pass, cam_pass.r_max, &traced, &vps, &mut pixels, &mut gather));
             }
             t_gather += t2.elapsed().as_secs_f64();
             pass += 1;
@@ -570,7 +571,7 @@ impl<'a> Phases<'a> {
         vps: &[Option<VisiblePoint>],
         pixels: &mut [PixelStats],
         buf: &mut GatherBuffers,
-    ) {
+    ) -> TraversalStats {
         let (world, probes) = (self.world, self.sppm.set.p.sppm_area_probes);
         let alpha = self.sppm.set.prog.alpha as f64;
         let seed = self.sppm.cfg.seed;
@@ -580,17 +581,26 @@ impl<'a> Phases<'a> {
         grid.build(traced, (r_max * (1.0 + 1e-4)) as f32);
         let grid = &*grid;
         let cap_factor = self.sppm.set.p.sppm_density_cap as f64;
+        let sum = |mut a: TraversalStats, b: TraversalStats| {
+            a.add(&b);
+            a
+        };
         if pass == 0 && cap_factor > 0.0 {
             // First pass: gather, then cap each pixel's count at cap_factor × the
             // median count (dense light such as caustics starts with a smaller disc).
             let found = &mut buf.found;
             found.clear();
+            let mut rays = Vec::new();
             vps.par_iter()
                 .zip(pixels.par_iter())
                 .with_max_len(GATHER_GRAIN)
                 .enumerate()
-                .map(|(i, (vp, px))| vp.as_ref().map(|vp| gather_covered(world, grid, vp, px.r as f32, probes, probe_key(i))))
-                .collect_into_vec(found);
+                .map(|(i, (vp, px))| {
+                    let mut st = TraversalStats::default();
+                    let f = vp.as_ref().map(|vp| gather_covered(world, grid, vp, px.r as f32, probes, probe_key(i), &mut st));
+                    (f, st)
+                })
+                .unzip_into_vecs(found, &mut rays);
             let cap = cap_factor * alpha * median_count(found);
             let cap = if cap > 0.0 { cap } else { f64::INFINITY };
             pixels.par_iter_mut().zip(vps.par_iter().zip(found.par_iter())).for_each(|(px, (vp, f))| {
@@ -598,13 +608,22 @@ impl<'a> Phases<'a> {
                     px.update_capped(*mm, *phi * vp.beta.as_dvec3(), alpha, cap);
                 }
             });
+            rays.into_iter().fold(TraversalStats::default(), sum)
         } else {
-            pixels.par_iter_mut().zip(vps.par_iter()).with_max_len(GATHER_GRAIN).enumerate().for_each(|(i, (px, vp))| {
-                if let Some(vp) = vp {
-                    let (mm, phi) = gather_covered(world, grid, vp, px.r as f32, probes, probe_key(i));
-                    px.update(mm, phi * vp.beta.as_dvec3(), alpha);
-                }
-            });
+            pixels
+                .par_iter_mut()
+                .zip(vps.par_iter())
+                .with_max_len(GATHER_GRAIN)
+                .enumerate()
+                .map(|(i, (px, vp))| {
+                    let mut st = TraversalStats::default();
+                    if let Some(vp) = vp {
+                        let (mm, phi) = gather_covered(world, grid, vp, px.r as f32, probes, probe_key(i), &mut st);
+                        px.update(mm, phi * vp.beta.as_dvec3(), alpha);
+                    }
+                    st
+                })
+                .reduce(TraversalStats::default, sum)
         }
     }
 }
@@ -679,15 +698,23 @@ pub fn photon_stream(pass: u32) -> u64 {
 /// or a curve is measured, not read as a missing share. A ball within the visible
 /// point's own triangle (farther than r from every edge) is covered: no probe. The
 /// share is kept in [1/probes, 2] (a surface whose photons were found though no probe
-/// met it covers at most about one probe's share).
-pub fn gather_covered(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32, probes: u32, key: u64) -> (u64, DVec3) {
-    let (m, phi) = gather(world, grid, vp, r);
+/// met it covers at most about one probe's share). The rays it casts (side tests and
+/// probes) are counted in `stats`.
+pub fn gather_covered(
+    world: &World,
+    grid: &PhotonGrid,
+    vp: &VisiblePoint,
+    r: f32,
+    probes: u32,
+    key: u64,
+    stats: &mut TraversalStats,
+) -> (u64, DVec3) {
+    let (m, phi) = gather(world, grid, vp, r, stats);
     if probes == 0 || m == 0 || disc_inside_triangle(world, vp, r) {
         return (m, phi);
     }
     let rot = crate::math::u32_to_unit((key >> 32) as u32) * std::f32::consts::TAU;
-    let mut st = TraversalStats::default();
-    let (got, flat) = estimate::coverage_sums(world, vp.p, vp.n, r * r, r, NORMAL_COS, estimate::Filter::Box, probes, rot, &mut st);
+    let (got, flat) = estimate::coverage_sums(world, vp.p, vp.n, r * r, r, NORMAL_COS, estimate::Filter::Box, probes, rot, stats);
     let share = if flat > 0.0 { (got / flat).clamp(1.0 / probes as f32, 2.0) } else { 1.0 };
     (m, phi / share as f64)
 }
@@ -708,8 +735,9 @@ fn disc_inside_triangle(world: &World, vp: &VisiblePoint, r: f32) -> bool {
 /// Photons within `r` of the visible point that arrived on its side: their count and
 /// Σ Φ f(wo, wi) (before the visible point's throughput). The diffuse part of f is
 /// the same for every photon in the shading hemisphere of wo, so it multiplies the
-/// summed power once; only a glossy lobe is evaluated per photon.
-pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u64, DVec3) {
+/// summed power once; only a glossy lobe is evaluated per photon. The side tests'
+/// rays are counted in `stats`.
+pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32, stats: &mut TraversalStats) -> (u64, DVec3) {
     let bsdf_at = vp.bsdf(world);
     let bsdf: &Bsdf = &bsdf_at;
     let glossy = bsdf.has_glossy();
@@ -725,16 +753,15 @@ pub fn gather(world: &World, grid: &PhotonGrid, vp: &VisiblePoint, r: f32) -> (u
     // the plane asks ([`estimate::keep_this_side`]).
     let tiny = estimate::off_plane_tolerance(vp.p);
     let (mut front, mut back) = (None, None);
-    let mut stats = TraversalStats::default();
     grid.for_each_within(vp.p, r, |pos, ph| {
         if ph.normal.dot(vp.n) < NORMAL_COS || ph.dir.dot(vp.n) <= 0.0 {
             return;
         }
         let h = (pos - vp.p).dot(vp.n);
-        if h > tiny && h > 0.5 * *front.get_or_insert_with(|| estimate::free_distance(world, vp.p, vp.n, vp.n, 2.0 * r, &mut stats)) {
+        if h > tiny && h > 0.5 * *front.get_or_insert_with(|| estimate::free_distance(world, vp.p, vp.n, vp.n, 2.0 * r, stats)) {
             return;
         }
-        if h < -tiny && -h > 0.5 * *back.get_or_insert_with(|| estimate::free_distance(world, vp.p, vp.n, -vp.n, 2.0 * r, &mut stats)) {
+        if h < -tiny && -h > 0.5 * *back.get_or_insert_with(|| estimate::free_distance(world, vp.p, vp.n, -vp.n, 2.0 * r, stats)) {
             return;
         }
         m += 1;

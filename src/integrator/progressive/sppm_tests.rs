@@ -66,6 +66,31 @@ fn photons_on_the_far_side_of_a_thin_wall_do_not_leak() {
     assert!(film.mean().x > 0.1, "{}", film.mean());
 }
 
+/// The gather's own rays — area probes and side tests — are in the render's ray
+/// counts: the camera and photon passes do not depend on the probes, so with them on
+/// the same render must report more rays than with them off (they were left out).
+#[test]
+fn gather_rays_are_counted() {
+    let mut world = thin_floor_seen_from_below();
+    world.scene.camera = Camera::new(Vec3::new(0.0, 1.5, 0.01), Vec3::ZERO, Vec3::Z, 60.0, 16, 16).unwrap();
+    let rays = |probes: i64| {
+        let cfg = RenderConfig { integrator: "sppm".into(), ..Default::default() }
+            .with("passes", 2)
+            .with("photons_per_pass", 20_000)
+            // The lone floor's only photons are first hits.
+            .with("sppm_direct", "photons")
+            .with("sppm_radius", 0.2)
+            .with("sppm_area_probes", probes);
+        let r = Reader::new(&cfg.params);
+        let mut sppm = SppmIntegrator::new(&cfg, &r, make_rr("throughput").unwrap(), true).unwrap();
+        let (_, stats) = sppm.run(&world, &mut |_, _, _| {}).unwrap();
+        stats.traversal.total_rays()
+    };
+    let (off, on) = (rays(0), rays(8));
+    // The floor's diagonal edge crosses the view: pixels near it probe 8 rays each.
+    assert!(on >= off + 8 * 16, "rays with probes {on}, without {off}");
+}
+
 #[test]
 fn bad_settings_are_named() {
     let err = |key: &str, v: toml::Value| {
