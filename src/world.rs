@@ -180,6 +180,9 @@ fn set_slot(b: &mut Bsdf, slot: Slot, rgb: impl Fn() -> Color, scalar: impl Fn(b
         Slot::SpecularReflectance => {
             b.set_color_param("specular_reflectance", rgb());
         }
+        Slot::SpecularTransmittance => {
+            b.set_color_param("specular_transmittance", rgb());
+        }
         Slot::Opacity { alpha } => {
             if let Bsdf::Mask(m) = b {
                 m.opacity = scalar(alpha).clamp(0.0, 1.0);

@@ -115,15 +115,15 @@ fn material_overrides_every_type_alias_and_default() {
             Color::ZERO,
         ),
         ("{ type = \"mirror\", ks = [0.5, 0.5, 0.5] }", Bsdf::Mirror(Mirror { reflectance: Color::splat(0.5) }), Color::ZERO),
-        ("{ type = \"glass\" }", Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::ONE }), Color::ZERO),
+        ("{ type = \"glass\" }", Bsdf::Dielectric(Dielectric::new(1.5, Color::ONE)), Color::ZERO),
         (
             "{ type = \"glass\", ior = 1.33, tint = [0.9, 1, 1] }",
-            Bsdf::Dielectric(Dielectric { ior: 1.33, tint: Color::new(0.9, 1.0, 1.0) }),
+            Bsdf::Dielectric(Dielectric::new(1.33, Color::new(0.9, 1.0, 1.0))),
             Color::ZERO,
         ),
         (
             "{ type = \"dielectric\", ior = 2.4, tf = [0.5, 0.5, 0.5] }",
-            Bsdf::Dielectric(Dielectric { ior: 2.4, tint: Color::splat(0.5) }),
+            Bsdf::Dielectric(Dielectric::new(2.4, Color::splat(0.5))),
             Color::ZERO,
         ),
         ("{ type = \"glossy\" }", g(0.5, 0.0, 1.0), Color::ZERO),
@@ -220,7 +220,7 @@ fn mtl_rule_order_from_files() {
     write(&d, "m.obj", &obj);
     let p = write(&d, "m.toml", &format!("{CAMERA}\n[[mesh]]\nobj = \"m.obj\"\n"));
     let s = load_scene(&p).unwrap();
-    let glass = |ior: f32, t: Color| Bsdf::Dielectric(Dielectric { ior, tint: t });
+    let glass = |ior: f32, t: Color| Bsdf::Dielectric(Dielectric::new(ior, t));
     let expect: Vec<(Bsdf, Color)> = vec![
         (lambert(Color::splat(0.25)), Color::splat(2.0)),
         (glass(1.2, Color::ONE), Color::ZERO),
@@ -397,13 +397,13 @@ fn kitchen_sink() -> Scene {
         materials: vec![
             mat("white wall", lambert(Color::new(0.7, 0.71, 0.123_456_79)), Color::ZERO),
             mat("lamp", lambert(Color::splat(0.78)), Color::new(17.0, 12.0, 4.0)),
-            mat("glass", Bsdf::Dielectric(Dielectric { ior: 1.333_333_4, tint: Color::new(0.9, 0.95, 1.0) }), Color::ZERO),
+            mat("glass", Bsdf::Dielectric(Dielectric::new(1.333_333_4, Color::new(0.9, 0.95, 1.0))), Color::ZERO),
             mat("mirror", Bsdf::Mirror(Mirror { reflectance: Color::new(0.95, 0.9, 0.1) }), Color::ZERO),
             mat("glossy", Bsdf::Glossy(Glossy { kd: Color::splat(0.3), ks: Color::new(0.2, 0.0, 0.6), exponent: 40.5 }), Color::ZERO),
             mat("flat glossy", Bsdf::Glossy(Glossy { kd: Color::splat(0.3), ks: Color::splat(0.2), exponent: 0.5 }), Color::ZERO),
             mat("dull glossy", Bsdf::Glossy(Glossy { kd: Color::splat(0.3), ks: Color::ZERO, exponent: 20.0 }), Color::ZERO),
             mat("black mirror", Bsdf::Mirror(Mirror { reflectance: Color::ZERO }), Color::ZERO),
-            mat("thin glass", Bsdf::Dielectric(Dielectric { ior: 1.0, tint: Color::ONE }), Color::ZERO),
+            mat("thin glass", Bsdf::Dielectric(Dielectric::new(1.0, Color::ONE)), Color::ZERO),
             // Same name as material 0, different content.
             mat("white wall", lambert(Color::splat(0.1)), Color::ZERO),
         ],

@@ -1,5 +1,8 @@
 //! Smooth dielectric: exact Fresnel reflection and refraction, total internal
-//! reflection, transmission tint applied at every crossing (scene contract).
+//! reflection, transmission tint applied at every crossing (scene contract). As
+//! Mitsuba 3's `dielectric`, the reflected part is multiplied by
+//! `specular_reflectance` and the transmitted part by the tint
+//! (`specular_transmittance`); the lobe probabilities stay Fresnel's.
 
 use super::{BsdfSample, ShadingPoint, TransportMode};
 use crate::math::{Color, reflect};
@@ -10,8 +13,12 @@ use glam::Vec3;
 pub struct Dielectric {
     /// Index of refraction of the inside.
     pub ior: f32,
-    /// Transmission tint multiplied in at every transmission.
+    /// Transmission tint multiplied in at every transmission (Mitsuba's
+    /// `specular_transmittance`).
     pub tint: Color,
+    /// Multiplier on reflection (Mitsuba's `specular_reflectance`; 1 in the scene
+    /// contract's glass).
+    pub specular_reflectance: Color,
 }
 
 /// Unpolarised Fresnel reflectance for light arriving with cosine `cos_i` (> 0) on the
@@ -35,6 +42,11 @@ pub fn fresnel(cos_i: f32, ior: f32) -> f32 {
 }
 
 impl Dielectric {
+    /// Glass of index `ior` with a transmission tint, reflecting unscaled.
+    pub fn new(ior: f32, tint: Color) -> Self {
+        Dielectric { ior, tint, specular_reflectance: Color::ONE }
+    }
+
     pub(super) fn sample(&self, sp: &ShadingPoint, wo: Vec3, u_lobe: f32, mode: TransportMode) -> Option<BsdfSample> {
         // Outside = front = the side the geometric normal points to.
         let outside = wo.dot(sp.ng) > 0.0;
@@ -45,13 +57,15 @@ impl Dielectric {
             // Shading normal disagrees with the side: treat as a mirror about ng.
             let ng = if outside { sp.ng } else { -sp.ng };
             let wi = reflect(wo, ng).normalize();
-            return Some(BsdfSample { wi, f: Color::ONE, pdf: 1.0, weight: Color::ONE, delta: true });
+            let w = self.specular_reflectance;
+            return Some(BsdfSample { wi, f: w, pdf: 1.0, weight: w, delta: true });
         }
         let f = fresnel_dielectric(cos_o, eta_o, eta_t);
         if u_lobe < f {
             let wi = reflect(wo, n).normalize();
             let cos = wi.dot(n).abs().max(1e-8);
-            return Some(BsdfSample { wi, f: Color::splat(f) / cos, pdf: f, weight: Color::ONE, delta: true });
+            let w = self.specular_reflectance;
+            return Some(BsdfSample { wi, f: w * f / cos, pdf: f, weight: w, delta: true });
         }
         // Refraction (Snell) about n, from the wo side into the other side.
         let eta = eta_o / eta_t;
@@ -99,7 +113,7 @@ mod tests {
 
     #[test]
     fn refraction_follows_snell_and_scales_radiance() {
-        let g = Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::ONE });
+        let g = Bsdf::Dielectric(Dielectric::new(1.5, Color::ONE));
         let sp = ShadingPoint::new(Vec3::Z, Vec3::Z);
         let wo = Vec3::new(0.6, 0.0, 0.8);
         let s = g.sample(&sp, wo, 0.99, [0.0, 0.0], TransportMode::Radiance).unwrap();

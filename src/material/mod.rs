@@ -20,6 +20,8 @@ mod mask;
 pub mod microfacet;
 mod mirror;
 mod plastic;
+#[cfg(test)]
+mod reflectance_tests;
 mod roughconductor;
 mod roughdielectric;
 mod roughplastic;
@@ -319,7 +321,7 @@ impl Bsdf {
             Bsdf::Lambertian(m) => m.albedo,
             Bsdf::Glossy(m) => m.kd + m.ks,
             Bsdf::Mirror(m) => m.reflectance,
-            Bsdf::Dielectric(m) => m.tint.max(Color::splat(dielectric::fresnel(1.0, m.ior))),
+            Bsdf::Dielectric(m) => m.tint.max(m.specular_reflectance * dielectric::fresnel(1.0, m.ior)),
             Bsdf::Conductor(m) => m.specular_reflectance * conductor::fresnel_rgb(1.0, m.eta, m.k),
             Bsdf::RoughConductor(m) => m.specular_reflectance * conductor::fresnel_rgb(1.0, m.eta, m.k),
             Bsdf::Plastic(m) => m.albedo(),

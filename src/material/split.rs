@@ -194,6 +194,7 @@ impl Bsdf {
         match (self, name) {
             (Bsdf::Lambertian(m), "reflectance" | "diffuse_reflectance") => m.albedo = c,
             (Bsdf::Mirror(m), "specular_reflectance") => m.reflectance = c,
+            (Bsdf::Dielectric(m), "specular_reflectance") => m.specular_reflectance = c,
             (Bsdf::Dielectric(m), "specular_transmittance") => m.tint = c,
             (Bsdf::Glossy(m), "diffuse_reflectance" | "reflectance") => m.kd = c,
             (Bsdf::Glossy(m), "specular_reflectance") => m.ks = c,

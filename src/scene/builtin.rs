@@ -93,7 +93,7 @@ pub fn cornell_glass() -> Scene {
     let mut glass = sphere;
     glass.materials.push(Material {
         name: "glass".into(),
-        bsdf: Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::ONE }),
+        bsdf: Bsdf::Dielectric(Dielectric::new(1.5, Color::ONE)),
         emission: Color::ZERO,
     });
     let place = |x: f32, z: f32| Placement { scale: Vec3::splat(100.0), rotate_y_deg: 0.0, translate: Vec3::new(x, 100.0, z) };

@@ -109,6 +109,9 @@ fn material_lines(m: &Material) -> Result<Written> {
             if !(d.ior.is_finite() && d.ior > 0.0) {
                 bail!("material `{}`: index of refraction {} cannot be written", m.name, d.ior);
             }
+            if d.specular_reflectance != Vec3::ONE {
+                bail!("material `{}`: a dielectric's specular_reflectance other than 1 cannot be written in the scene contract", m.name);
+            }
             if d.ior > 1.0 {
                 Written::Mtl(format!("illum 7\nNi {}\nTf {}\n", d.ior, ov(d.tint)))
             } else {
@@ -313,7 +316,7 @@ mod tests {
         assert!(matches!(material_lines(&g(0.0, 10.0)).unwrap(), Written::Override(_)));
         let mirror = Material { bsdf: Bsdf::Mirror(Mirror { reflectance: Color::ZERO }), ..Material::diffuse("m", Color::ZERO) };
         assert!(matches!(material_lines(&mirror).unwrap(), Written::Override(_)));
-        let glass = Material { bsdf: Bsdf::Dielectric(Dielectric { ior: 1.0, tint: Color::ONE }), ..Material::diffuse("m", Color::ZERO) };
+        let glass = Material { bsdf: Bsdf::Dielectric(Dielectric::new(1.0, Color::ONE)), ..Material::diffuse("m", Color::ZERO) };
         assert!(matches!(material_lines(&glass).unwrap(), Written::Override(_)));
         let bad = Material { emission: Color::ONE, ..mirror };
         assert!(material_lines(&bad).is_err());

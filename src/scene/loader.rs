@@ -272,7 +272,7 @@ fn override_material(m: &OverrideToml, name: &str) -> anyhow::Result<Material> {
             if !(ior.is_finite() && ior > 0.0) {
                 return Err(anyhow::anyhow!("ior must be finite and positive, got {ior}"));
             }
-            mat.bsdf = Bsdf::Dielectric(Dielectric { ior, tint: colour(tint.unwrap_or([1.0; 3]), "tint")? });
+            mat.bsdf = Bsdf::Dielectric(Dielectric::new(ior, colour(tint.unwrap_or([1.0; 3]), "tint")?));
         }
         OverrideToml::Glossy { kd, ks, ns } => {
             let exponent = ns.unwrap_or(1.0);

@@ -111,7 +111,7 @@ pub fn mtl_to_material(name: &str, e: &MtlEntry) -> Material {
     let illum = e.illum.unwrap_or(-1);
     if matches!(illum, 4 | 6 | 7) || e.d.is_some_and(|d| d < 1.0) || e.tr.is_some_and(|t| t > 0.0) {
         let ior = e.ni.filter(|&n| n > 1.0).unwrap_or(1.5);
-        m.bsdf = Bsdf::Dielectric(Dielectric { ior, tint: e.tf.unwrap_or(Color::ONE) });
+        m.bsdf = Bsdf::Dielectric(Dielectric::new(ior, e.tf.unwrap_or(Color::ONE)));
         return m;
     }
     if matches!(illum, 3 | 5) {
@@ -538,11 +538,11 @@ mod tests {
                      newmtl h\nillum 5\nKs 0 0.5 0\n");
         assert_eq!(m[0].emission, Color::new(1.0, 0.0, 0.0));
         assert_eq!(m[0].bsdf, Bsdf::Lambertian(crate::material::Lambertian { albedo: Color::splat(0.2) }));
-        assert_eq!(m[1].bsdf, Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::ONE }));
+        assert_eq!(m[1].bsdf, Bsdf::Dielectric(Dielectric::new(1.5, Color::ONE)));
         assert_eq!(m[2].bsdf, Bsdf::Mirror(Mirror { reflectance: Color::ONE }));
         assert_eq!(m[3].bsdf, Bsdf::Lambertian(crate::material::Lambertian { albedo: Color::splat(0.3) }));
         assert_eq!(m[4].bsdf, Bsdf::Lambertian(crate::material::Lambertian { albedo: Color::splat(0.5) }));
-        assert_eq!(m[5].bsdf, Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::new(0.2, 0.3, 0.4) }));
+        assert_eq!(m[5].bsdf, Bsdf::Dielectric(Dielectric::new(1.5, Color::new(0.2, 0.3, 0.4))));
         assert_eq!(m[6].bsdf, Bsdf::Glossy(Glossy { kd: Color::new(0.1, 0.2, 0.3), ks: Color::splat(0.2), exponent: 40.0 }));
         assert_eq!(m[7].bsdf, Bsdf::Mirror(Mirror { reflectance: Color::new(0.0, 0.5, 0.0) }));
         assert!(m.iter().skip(1).all(|x| !x.is_emitter()));

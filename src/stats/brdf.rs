@@ -156,10 +156,8 @@ pub fn run(s: &Settings) -> Result<FamilyReport> {
     let a = max_asymmetry(&original_phong(10.0), pairs, 11);
     rows.push(TestRow::new("brdf/reciprocity/planted/original_phong_n10", a, None, Outcome::Fail, a <= RECIPROCITY_TOL));
     // Delta BSDFs: scattered flux = sum of the branch weights, from both sides.
-    let deltas = [
-        ("mirror", Bsdf::Mirror(Mirror { reflectance: Color::ONE })),
-        ("glass", Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::ONE })),
-    ];
+    let deltas =
+        [("mirror", Bsdf::Mirror(Mirror { reflectance: Color::ONE })), ("glass", Bsdf::Dielectric(Dielectric::new(1.5, Color::ONE)))];
     for (name, b) in deltas {
         let mut max = 0.0f64;
         for &deg in &ANGLES {

@@ -62,8 +62,11 @@ pub fn apply_uv(m: &Mat3, uv: Vec2) -> Vec2 {
 pub enum Slot {
     /// Diffuse reflectance (Lambertian albedo, glossy Kd, plastics' diffuse part).
     DiffuseReflectance,
-    /// Specular reflectance (mirror, conductors' scale, plastics' specular part).
+    /// Specular reflectance (mirror, conductors' scale, plastics' specular part,
+    /// dielectrics' reflected part).
     SpecularReflectance,
+    /// Specular transmittance (dielectrics' transmitted part).
+    SpecularTransmittance,
     /// Opacity of a `mask` (alpha cut-outs; MTL `map_d`).
     Opacity {
         /// Read the image's alpha channel where it has one.

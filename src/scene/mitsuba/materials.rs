@@ -9,6 +9,10 @@
 //! `conductor none` is reported as a warning (Mitsuba's are black from behind); the
 //! microfacet and plastic BSDFs are one-sided exactly as in Mitsuba, and `twosided`
 //! makes them two-sided.
+//!
+//! Every reflectance parameter takes a constant or a texture: `reflectance`,
+//! `diffuse_reflectance`, `specular_reflectance`, `specular_transmittance` and a
+//! mask's `opacity`. `eta`, `k`, the IORs and the roughness are constants only.
 
 use super::presets;
 use super::textures::{TextureCache, texture};
@@ -45,12 +49,12 @@ fn plain(p: &Plugin, bsdf: Bsdf, one_sided: bool) -> Mapped {
 pub fn bsdf(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     let m = match p.ty.as_str() {
         "diffuse" => diffuse(p, cache)?,
-        "dielectric" => dielectric(p)?,
-        "conductor" => conductor(p)?,
+        "dielectric" => dielectric(p, cache)?,
+        "conductor" => conductor(p, cache)?,
         "twosided" => twosided(p, cache)?,
-        "roughconductor" => roughconductor(p)?,
-        "roughdielectric" => roughdielectric(p)?,
-        "thindielectric" => thindielectric(p)?,
+        "roughconductor" => roughconductor(p, cache)?,
+        "roughdielectric" => roughdielectric(p, cache)?,
+        "thindielectric" => thindielectric(p, cache)?,
         "plastic" => plastic(p, cache)?,
         "roughplastic" => roughplastic(p, cache)?,
         "mask" => mask(p, cache)?,
@@ -97,14 +101,19 @@ fn colour(p: &Plugin, name: &str, default: f32, cache: &mut TextureCache) -> Res
     })
 }
 
-/// A constant colour (textures not supported for this parameter).
-fn const_colour(p: &Plugin, name: &str, default: f32) -> Result<Color> {
-    match p.spectrum(name)? {
-        None => Ok(Color::splat(default)),
-        Some(SpectrumValue::Rgb(c)) if c.min_element() >= 0.0 => Ok(c),
-        Some(SpectrumValue::Rgb(c)) => Err(p.err(format!("`{name}` must not be negative, got {c}"))),
-        Some(SpectrumValue::Texture(t)) => Err(t.err(format!("a texture on `{name}` of {} is not supported", p.what()))),
-    }
+/// `specular_reflectance` (default 1), constant or bound to its slot.
+fn specular_reflectance(p: &Plugin, cache: &mut TextureCache, textures: &mut Vec<(Slot, Texture)>) -> Result<Color> {
+    Ok(colour(p, "specular_reflectance", 1.0, cache)?.split(Slot::SpecularReflectance, textures))
+}
+
+/// `specular_transmittance` (default 1), constant or bound to its slot.
+fn specular_transmittance(p: &Plugin, cache: &mut TextureCache, textures: &mut Vec<(Slot, Texture)>) -> Result<Color> {
+    Ok(colour(p, "specular_transmittance", 1.0, cache)?.split(Slot::SpecularTransmittance, textures))
+}
+
+/// A mapped material with its bound textures.
+fn with_textures(p: &Plugin, bsdf: Bsdf, one_sided: bool, textures: Vec<(Slot, Texture)>) -> Mapped {
+    Mapped { textures, ..plain(p, bsdf, one_sided) }
 }
 
 /// An IOR given as a number or one of Mitsuba's names.
@@ -125,14 +134,10 @@ fn diffuse(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     Ok(m)
 }
 
-fn dielectric(p: &Plugin) -> Result<Mapped> {
-    let int = ior(p, "int_ior", "bk7")?;
-    let ext = ior(p, "ext_ior", "air")?;
-    if const_colour(p, "specular_reflectance", 1.0)? != Color::ONE {
-        return Err(p.err("specular_reflectance other than 1 is not supported"));
-    }
-    let tint = const_colour(p, "specular_transmittance", 1.0)?;
-    Ok(plain(p, Bsdf::Dielectric(Dielectric { ior: int / ext, tint }), false))
+fn dielectric(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
+    let (int, ext, specular_reflectance, tint, textures) = dielectric_params(p, cache)?;
+    let b = Dielectric { ior: int / ext, tint, specular_reflectance };
+    Ok(with_textures(p, Bsdf::Dielectric(b), false, textures))
 }
 
 /// Conductor parameters: a preset (`material`) or explicit `eta`/`k`.
@@ -141,13 +146,11 @@ struct ConductorParams {
     eta: Vec3,
     /// Relative absorption k / ext_eta.
     k: Vec3,
-    specular_reflectance: Color,
 }
 
 fn conductor_params(p: &Plugin) -> Result<Option<ConductorParams>> {
     let material = p.string("material")?;
     let (eta, k) = (p.spectrum("eta")?, p.spectrum("k")?);
-    let specular_reflectance = const_colour(p, "specular_reflectance", 1.0)?;
     let ext_eta = ior(p, "ext_eta", "air")?;
     let rgb = |v: Option<SpectrumValue>, name: &str| match v {
         Some(SpectrumValue::Rgb(c)) => Ok(c),
@@ -170,17 +173,16 @@ fn conductor_params(p: &Plugin) -> Result<Option<ConductorParams>> {
     if eta.min_element() < 0.0 || k.min_element() < 0.0 {
         return Err(p.err(format!("`eta` and `k` must not be negative, got {eta} and {k}")));
     }
-    Ok(Some(ConductorParams { eta: eta / ext_eta, k: k / ext_eta, specular_reflectance }))
+    Ok(Some(ConductorParams { eta: eta / ext_eta, k: k / ext_eta }))
 }
 
-fn conductor(p: &Plugin) -> Result<Mapped> {
+fn conductor(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
+    let mut textures = Vec::new();
+    let specular_reflectance = specular_reflectance(p, cache, &mut textures)?;
     // `material="none"` (the default) reflects everything: photonlab's mirror.
     Ok(match conductor_params(p)? {
-        None => {
-            let reflectance = const_colour(p, "specular_reflectance", 1.0)?;
-            plain(p, Bsdf::Mirror(Mirror { reflectance }), true)
-        }
-        Some(c) => plain(p, Bsdf::Conductor(Conductor { eta: c.eta, k: c.k, specular_reflectance: c.specular_reflectance }), false),
+        None => with_textures(p, Bsdf::Mirror(Mirror { reflectance: specular_reflectance }), true, textures),
+        Some(c) => with_textures(p, Bsdf::Conductor(Conductor { eta: c.eta, k: c.k, specular_reflectance }), false, textures),
     })
 }
 
@@ -210,35 +212,43 @@ fn rough(p: &Plugin) -> Result<Rough> {
     Ok(Rough { distribution, alpha })
 }
 
-fn roughconductor(p: &Plugin) -> Result<Mapped> {
+fn roughconductor(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     let r = rough(p)?;
+    let mut textures = Vec::new();
+    let specular_reflectance = specular_reflectance(p, cache, &mut textures)?;
     // `material="none"` (Mitsuba 3's default): η = 0, k = 1, a Fresnel term of one.
-    let (eta, k, specular_reflectance) = match conductor_params(p)? {
-        Some(c) => (c.eta, c.k, c.specular_reflectance),
-        None => (Vec3::ZERO, Vec3::ONE, const_colour(p, "specular_reflectance", 1.0)?),
+    let (eta, k) = match conductor_params(p)? {
+        Some(c) => (c.eta, c.k),
+        None => (Vec3::ZERO, Vec3::ONE),
     };
     let b = RoughConductor { distribution: r.distribution, alpha: r.alpha, eta, k, specular_reflectance };
-    Ok(plain(p, Bsdf::RoughConductor(b), false))
+    Ok(with_textures(p, Bsdf::RoughConductor(b), false, textures))
 }
 
-fn dielectric_iors(p: &Plugin) -> Result<(f32, f32, Color, Color)> {
+/// The three dielectrics' parameters: interior and exterior IOR, the multipliers on
+/// the reflected and the transmitted part (constant or textured), the textures.
+type DielectricParams = (f32, f32, Color, Color, Vec<(Slot, Texture)>);
+
+fn dielectric_params(p: &Plugin, cache: &mut TextureCache) -> Result<DielectricParams> {
     let (int, ext) = (ior(p, "int_ior", "bk7")?, ior(p, "ext_ior", "air")?);
-    let r = const_colour(p, "specular_reflectance", 1.0)?;
-    let t = const_colour(p, "specular_transmittance", 1.0)?;
-    Ok((int, ext, r, t))
+    let mut textures = Vec::new();
+    let r = specular_reflectance(p, cache, &mut textures)?;
+    let t = specular_transmittance(p, cache, &mut textures)?;
+    Ok((int, ext, r, t, textures))
 }
 
-fn roughdielectric(p: &Plugin) -> Result<Mapped> {
+fn roughdielectric(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
     let r = rough(p)?;
-    let (int_ior, ext_ior, specular_reflectance, specular_transmittance) = dielectric_iors(p)?;
+    let (int_ior, ext_ior, specular_reflectance, specular_transmittance, textures) = dielectric_params(p, cache)?;
     let b =
         RoughDielectric { distribution: r.distribution, alpha: r.alpha, int_ior, ext_ior, specular_reflectance, specular_transmittance };
-    Ok(plain(p, Bsdf::RoughDielectric(b), false))
+    Ok(with_textures(p, Bsdf::RoughDielectric(b), false, textures))
 }
 
-fn thindielectric(p: &Plugin) -> Result<Mapped> {
-    let (int_ior, ext_ior, specular_reflectance, specular_transmittance) = dielectric_iors(p)?;
-    Ok(plain(p, Bsdf::ThinDielectric(ThinDielectric { int_ior, ext_ior, specular_reflectance, specular_transmittance }), false))
+fn thindielectric(p: &Plugin, cache: &mut TextureCache) -> Result<Mapped> {
+    let (int_ior, ext_ior, specular_reflectance, specular_transmittance, textures) = dielectric_params(p, cache)?;
+    let b = ThinDielectric { int_ior, ext_ior, specular_reflectance, specular_transmittance };
+    Ok(with_textures(p, Bsdf::ThinDielectric(b), false, textures))
 }
 
 /// The parameters both plastics share.
@@ -255,7 +265,7 @@ fn plastic_params(p: &Plugin, cache: &mut TextureCache) -> Result<PlasticParams>
     let (int_ior, ext_ior) = (ior(p, "int_ior", "polypropylene")?, ior(p, "ext_ior", "air")?);
     let mut textures = Vec::new();
     let kd = colour(p, "diffuse_reflectance", 0.5, cache)?.split(Slot::DiffuseReflectance, &mut textures);
-    let ks = const_colour(p, "specular_reflectance", 1.0)?;
+    let ks = specular_reflectance(p, cache, &mut textures)?;
     let nonlinear = p.bool_or("nonlinear", false)?;
     Ok(PlasticParams { int_ior, ext_ior, kd, ks, nonlinear, textures })
 }

@@ -181,3 +181,100 @@ fn serialized_shape_with_index() {
     let e = load_scene(&write(d.path(), "e.xml", &format!("{SENSOR}\n{}", shape(5)))).unwrap_err().to_string();
     assert!(e.contains("m.serialized") && e.contains("out of range"), "{e}");
 }
+
+/// A checkerboard on every reflectance parameter of the seven BSDFs that have one
+/// loads and binds to its slot (a texture on `specular_reflectance` or
+/// `specular_transmittance` used to be an error).
+#[test]
+fn textures_on_specular_parameters_bind_to_their_slots() {
+    use crate::texture::Slot;
+    let d = tempfile::tempdir().unwrap();
+    let tex = |name: &str| format!(r#"<texture type="checkerboard" name="{name}"/>"#);
+    let (r, t) = (tex("specular_reflectance"), tex("specular_transmittance"));
+    let bsdfs = [
+        format!(r#"<bsdf type="conductor"><string name="material" value="Au"/>{r}</bsdf>"#),
+        format!(r#"<bsdf type="conductor">{r}</bsdf>"#),
+        format!(r#"<bsdf type="roughconductor"><string name="material" value="Cu"/>{r}</bsdf>"#),
+        format!(r#"<bsdf type="dielectric">{r}{t}</bsdf>"#),
+        format!(r#"<bsdf type="roughdielectric">{t}</bsdf>"#),
+        format!(r#"<bsdf type="thindielectric">{r}{t}</bsdf>"#),
+        format!(r#"<bsdf type="plastic">{r}</bsdf>"#),
+        format!(r#"<bsdf type="twosided"><bsdf type="roughplastic">{r}{}</bsdf></bsdf>"#, tex("diffuse_reflectance")),
+    ];
+    let body: String = bsdfs.iter().map(|b| format!("<shape type=\"rectangle\">{b}</shape>\n")).collect();
+    let s = load_scene(&write(d.path(), "spec.xml", &format!("{SENSOR}\n{body}"))).unwrap();
+    let mut slots: Vec<(u32, Slot)> = s.textures.bindings.iter().map(|b| (b.material, b.slot)).collect();
+    slots.sort_by_key(|&(m, slot)| (m, format!("{slot:?}")));
+    let (sr, st, dr) = (Slot::SpecularReflectance, Slot::SpecularTransmittance, Slot::DiffuseReflectance);
+    let want = [(0, sr), (1, sr), (2, sr), (3, sr), (3, st), (4, st), (5, sr), (5, st), (6, sr), (7, dr), (7, sr)];
+    assert_eq!(slots, want);
+    assert_eq!(s.textures.textures.len(), 1, "one checkerboard, shared");
+}
+
+/// A checkerboard (1 / 0.25) on a smooth gold conductor's `specular_reflectance`, and
+/// on a thin pane's `specular_transmittance` (its reflection off), seen face-on under
+/// a constant environment: against the untextured BSDF the image keeps every pixel of
+/// the `color0` checks bit for bit and is a quarter in the others, in the
+/// checkerboard's diagonal pattern with Mitsuba's phase (the rectangle's uv (0, 1)
+/// corner, top left in the image, is a `color1` check).
+#[test]
+fn textured_specular_parameters_change_the_image_where_expected() {
+    use crate::config::RenderConfig;
+    let d = tempfile::tempdir().unwrap();
+    let checker = |name: &str| {
+        format!(r#"<texture type="checkerboard" name="{name}"><rgb name="color0" value="1"/><rgb name="color1" value="0.25"/></texture>"#)
+    };
+    let cases = [
+        ("conductor", r#"<string name="material" value="Au"/>"#, checker("specular_reflectance")),
+        ("thindielectric", r#"<rgb name="specular_reflectance" value="0"/>"#, checker("specular_transmittance")),
+    ];
+    for (ty, common, tex) in cases {
+        let scene = |extra: &str, name: &str| {
+            let body = format!(
+                "{SENSOR}\n<shape type=\"rectangle\"><transform name=\"to_world\"><scale value=\"10\"/></transform>\
+                 <bsdf type=\"{ty}\">{common}{extra}</bsdf></shape>\n<emitter type=\"constant\"/>"
+            );
+            load_scene(&write(d.path(), name, &body)).unwrap()
+        };
+        let cfg = RenderConfig { spp: 8, seed: 3, ..Default::default() };
+        let render = |s| crate::pipeline::render_scene(s, &cfg, true).unwrap().film;
+        let (plain, textured) = (render(scene("", "plain.xml")), render(scene(&tex, "textured.xml")));
+        assert_eq!((plain.width, plain.height), (20, 10));
+        // The rectangle's uv square maps 2 × 2 checks onto the image's quadrants.
+        let (mut full, mut quarter) = (0, 0);
+        for y in 0..10 {
+            for x in 0..20 {
+                let (p, t) = (plain.get(x, y), textured.get(x, y));
+                assert!(p.min_element() > 0.2, "{ty} ({x}, {y}): {p}");
+                if (x < 10) != (y < 5) {
+                    assert_eq!(t, p, "{ty} ({x}, {y})");
+                    full += 1;
+                } else {
+                    assert!((t - p * 0.25).abs().max_element() < 1e-5 * p.max_element(), "{ty} ({x}, {y}): {t} vs {p}");
+                    quarter += 1;
+                }
+            }
+        }
+        assert_eq!((full, quarter), (100, 100), "{ty}");
+    }
+}
+
+/// Parameters that cannot take a texture still say so, with file and line.
+#[test]
+fn textures_on_non_colour_parameters_are_errors_with_file_and_line() {
+    let d = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "<bsdf type=\"conductor\">\n<texture type=\"checkerboard\" name=\"eta\"/><rgb name=\"k\" value=\"1\"/></bsdf>",
+            "a texture on `eta`",
+        ),
+        ("<bsdf type=\"roughconductor\">\n<texture type=\"checkerboard\" name=\"alpha\"/></bsdf>", "`alpha` must be a <float>"),
+        ("<bsdf type=\"roughdielectric\">\n<texture type=\"checkerboard\" name=\"int_ior\"/></bsdf>", "`int_ior` must be"),
+    ];
+    for (i, (bsdf, needle)) in cases.iter().enumerate() {
+        let p = write(d.path(), &format!("t{i}.xml"), &format!("{SENSOR}\n<shape type=\"rectangle\">{bsdf}</shape>"));
+        let e = load_scene(&p).unwrap_err().to_string();
+        let file_line = format!("{}:7:", p.display());
+        assert!(e.starts_with(&file_line) && e.contains(needle), "case {i}: {e}");
+    }
+}

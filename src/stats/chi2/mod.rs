@@ -537,7 +537,7 @@ pub fn fresnel(cos_i: f64, eta_i: f64, eta_t: f64) -> f64 {
 /// Samples that are neither the reflection nor the refraction, or that report a
 /// different probability, land in a last category expecting none.
 fn discrete_cases(n: usize) -> Vec<(String, Outcome, Vec<u64>, Vec<f64>)> {
-    let glass = Bsdf::Dielectric(Dielectric { ior: 1.5, tint: Color::ONE });
+    let glass = Bsdf::Dielectric(Dielectric::new(1.5, Color::ONE));
     let mirror = Bsdf::Mirror(Mirror { reflectance: Color::splat(0.9) });
     let sp = flat();
     let mut out = Vec::new();
