@@ -80,10 +80,8 @@ impl Film {
 
     /// Writes a PNG (sRGB, clamped).
     pub fn write_png(&self, path: &Path) -> Result<()> {
-        let mut buf = Vec::new();
-        let img = image::RgbImage::from_raw(self.width, self.height, self.to_srgb8()).context("image buffer size")?;
-        img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
-            .with_context(|| format!("{}: cannot encode PNG", path.display()))?;
+        let buf =
+            encode_png_rgb8(self.width, self.height, &self.to_srgb8()).with_context(|| format!("{}: cannot encode PNG", path.display()))?;
         write_atomic(path, &buf)
     }
 
@@ -136,6 +134,20 @@ impl Film {
         self.write_png(&png)?;
         Ok((exr, png))
     }
+}
+
+/// PNG bytes of an 8-bit RGB buffer (`width * height * 3` bytes, rows top to bottom),
+/// written with the `png` crate: the same input gives the same bytes.
+pub fn encode_png_rgb8(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>> {
+    anyhow::ensure!(rgb.len() as u64 == width as u64 * height as u64 * 3, "PNG buffer of {} bytes for {width}x{height} RGB", rgb.len());
+    let mut buf = Vec::new();
+    let mut enc = png::Encoder::new(&mut buf, width, height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header().map_err(|e| anyhow::anyhow!("cannot encode PNG: {e}"))?;
+    w.write_image_data(rgb).map_err(|e| anyhow::anyhow!("cannot encode PNG: {e}"))?;
+    w.finish().map_err(|e| anyhow::anyhow!("cannot encode PNG: {e}"))?;
+    Ok(buf)
 }
 
 #[cfg(test)]

@@ -290,12 +290,9 @@ fn seeds(scratch: &Path, extra: &[PathBuf]) -> Result<Vec<(Target, Vec<u8>)>> {
         out.push((Target::Serialized, write_serialized(&[(&p[..3], &[], &[], &[[0, 1, 2]]), quad])));
         out.push((Target::Serialized, mesh_payload(&quad, "quad")));
     }
-    {
-        let mut jpeg = Vec::new();
-        let img = image::RgbImage::from_fn(16, 8, |x, y| image::Rgb([(x * 16) as u8, (y * 30) as u8, 128]));
-        img.write_to(&mut std::io::Cursor::new(&mut jpeg), image::ImageFormat::Jpeg)?;
-        out.push((Target::Image, jpeg));
-    }
+    // A 16x8 baseline JPEG (a gradient, written once with Pillow), so the image target
+    // mutates real JPEG markers without a JPEG encoder in the binary.
+    out.push((Target::Image, include_bytes!("../assets/fuzz/seed.jpg").to_vec()));
     for f in files {
         let target = match f.extension().and_then(|e| e.to_str()) {
             Some("obj") => Target::Obj,

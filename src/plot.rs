@@ -239,14 +239,14 @@ fn both(stem: &Path, png: impl FnOnce(&Path) -> Result<()>, svg: impl FnOnce(&Pa
 /// Size of every plot, in pixels (PNG) and user units (SVG).
 const PLOT_SIZE: (u32, u32) = (900, 600);
 
-/// Draws into an RGB buffer and writes it as a PNG with the `image` crate the film already
-/// uses (plotters' own encoder would build a second, older `image` into the binary).
+/// Draws into an RGB buffer and writes it as a PNG with the film's encoder (plotters' own
+/// encoder would build the `image` crate into the binary).
 fn png_file(path: &Path, draw: impl FnOnce(DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>) -> Result<()> {
     let (w, h) = PLOT_SIZE;
     let mut buf = vec![0u8; (w * h * 3) as usize];
     draw(BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area())?;
-    image::save_buffer_with_format(path, &buf, w, h, image::ColorType::Rgb8, image::ImageFormat::Png)
-        .with_context(|| format!("{}: cannot write PNG", path.display()))
+    let png = crate::film::encode_png_rgb8(w, h, &buf)?;
+    std::fs::write(path, png).with_context(|| format!("{}: cannot write PNG", path.display()))
 }
 
 /// Writes `stem.png` and `stem.svg` with a line chart.

@@ -155,10 +155,7 @@ pub fn relerr_png(img: &Film, reference: &Film) -> Result<Vec<u8>> {
         let t = if e.is_nan() { 1.0 } else { (e.max(1e-12).log10() - lo) / (hi - lo) };
         bytes.extend_from_slice(&heat(t));
     }
-    let im = image::RgbImage::from_raw(img.width, img.height, bytes).context("error image buffer size")?;
-    let mut buf = Vec::new();
-    im.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png).context("cannot encode the error image")?;
-    Ok(buf)
+    crate::film::encode_png_rgb8(img.width, img.height, &bytes).context("cannot encode the error image")
 }
 
 /// Everything recorded about one finished cell (`cells/STEM.json`, one row of the tables).

@@ -6,7 +6,7 @@
 
 use super::cell::REL_EPS;
 use crate::film::Film;
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use serde::{Deserialize, Serialize};
 
 /// Fraction of pixels (largest per-pixel relative errors) discarded by the trimmed
@@ -224,10 +224,7 @@ pub fn signed_png(img: &Film, reference: &Film) -> Result<Vec<u8>> {
 
 /// PNG bytes of an 8-bit RGB buffer.
 pub fn encode_png(width: u32, height: u32, rgb: Vec<u8>) -> Result<Vec<u8>> {
-    let im = image::RgbImage::from_raw(width, height, rgb).context("image buffer size")?;
-    let mut buf = Vec::new();
-    im.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png).context("cannot encode PNG")?;
-    Ok(buf)
+    crate::film::encode_png_rgb8(width, height, &rgb)
 }
 
 /// Noise of a reference made as the sample-weighted mean of two independent parts

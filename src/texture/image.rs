@@ -76,32 +76,103 @@ impl Image {
 }
 
 fn decode_ldr(bytes: &[u8], ext: &str, raw: bool) -> Result<Image> {
-    let format = if ext == "png" { image::ImageFormat::Png } else { image::ImageFormat::Jpeg };
-    let mut reader = image::ImageReader::with_format(Cursor::new(bytes), format);
-    let mut limits = image::Limits::default();
-    limits.max_alloc = Some(2 << 30);
-    reader.limits(limits);
-    let img = reader.decode().map_err(|e| anyhow!("cannot decode {ext} image: {e}"))?;
-    let (w, h) = (img.width(), img.height());
-    if w as u64 * h as u64 > MAX_PIXELS {
-        bail!("image is too large ({w}x{h})");
-    }
-    let has_alpha = img.color().has_alpha();
-    let pixels: Vec<[f32; 4]> = if img.color().bytes_per_pixel() / img.color().channel_count() == 1 {
+    let (w, h, px) = if ext == "png" { decode_png(bytes)? } else { decode_jpeg(bytes)? };
+    let has_alpha = px.alpha;
+    let pixels: Vec<[f32; 4]> = if px.bits == 8 {
         let mut lut = [0.0f32; 256];
         for (i, v) in lut.iter_mut().enumerate() {
             let x = i as f32 / 255.0;
             *v = if raw { x } else { srgb_to_linear(x) };
         }
-        img.to_rgba8().pixels().map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize], p[3] as f32 / 255.0]).collect()
+        px.rgba().map(|[r, g, b, a]| [lut[r], lut[g], lut[b], a as f32 / 255.0]).collect()
     } else {
-        let dec = |v: u16| {
+        let dec = |v: usize| {
             let x = v as f32 / 65535.0;
             if raw { x } else { srgb_to_linear(x) }
         };
-        img.to_rgba16().pixels().map(|p| [dec(p[0]), dec(p[1]), dec(p[2]), p[3] as f32 / 65535.0]).collect()
+        px.rgba().map(|[r, g, b, a]| [dec(r), dec(g), dec(b), a as f32 / 65535.0]).collect()
     };
     Image::new(w, h, pixels, has_alpha)
+}
+
+/// Decoded 8- or 16-bit samples, 1–4 channels (grey, grey + alpha, RGB, RGBA).
+struct Samples {
+    /// One value per channel and pixel (16-bit values already combined).
+    values: Vec<u16>,
+    channels: usize,
+    bits: u8,
+    alpha: bool,
+}
+
+impl Samples {
+    /// Every pixel as RGBA (grey repeated; opaque without alpha).
+    fn rgba(&self) -> impl Iterator<Item = [usize; 4]> + '_ {
+        let opaque = if self.bits == 8 { 255 } else { 65535 };
+        self.values.chunks_exact(self.channels).map(move |p| {
+            let (r, g, b, a) = match p.len() {
+                1 => (p[0], p[0], p[0], opaque),
+                2 => (p[0], p[0], p[0], p[1]),
+                3 => (p[0], p[1], p[2], opaque),
+                _ => (p[0], p[1], p[2], p[3]),
+            };
+            [r as usize, g as usize, b as usize, a as usize]
+        })
+    }
+}
+
+fn check_size(w: u64, h: u64) -> Result<()> {
+    if w == 0 || h == 0 || w * h > MAX_PIXELS {
+        bail!("image is too large or empty ({w}x{h})");
+    }
+    Ok(())
+}
+
+/// PNG with the `png` crate: palettes, low bit depths and tRNS expanded; 16-bit kept.
+fn decode_png(bytes: &[u8]) -> Result<(u32, u32, Samples)> {
+    let err = |e: png::DecodingError| anyhow!("cannot decode png image: {e}");
+    let mut dec = png::Decoder::new_with_limits(Cursor::new(bytes), png::Limits { bytes: 2 << 30 });
+    dec.set_transformations(png::Transformations::EXPAND);
+    let mut reader = dec.read_info().map_err(err)?;
+    let (w, h) = (reader.info().width, reader.info().height);
+    check_size(w as u64, h as u64)?;
+    let size = reader.output_buffer_size().ok_or_else(|| anyhow!("cannot decode png image: too large"))?;
+    let mut buf = vec![0u8; size];
+    let frame = reader.next_frame(&mut buf).map_err(err)?;
+    let channels = frame.color_type.samples();
+    let bits = match frame.bit_depth {
+        png::BitDepth::Sixteen => 16,
+        png::BitDepth::Eight => 8,
+        d => bail!("cannot decode png image: unexpected bit depth {d:?} after expansion"),
+    };
+    let alpha = matches!(frame.color_type, png::ColorType::GrayscaleAlpha | png::ColorType::Rgba);
+    let (line, row) = (frame.line_size, w as usize * channels * (bits as usize / 8));
+    let mut values = Vec::with_capacity(w as usize * h as usize * channels);
+    for y in 0..h as usize {
+        let r = &buf[y * line..y * line + row];
+        if bits == 8 {
+            values.extend(r.iter().map(|&v| v as u16));
+        } else {
+            values.extend(r.chunks_exact(2).map(|c| u16::from_be_bytes([c[0], c[1]])));
+        }
+    }
+    Ok((w, h, Samples { values, channels, bits, alpha }))
+}
+
+/// Baseline and progressive JPEG with `zune-jpeg`, decoded to 8-bit RGB.
+fn decode_jpeg(bytes: &[u8]) -> Result<(u32, u32, Samples)> {
+    use zune_core::bytestream::ZCursor;
+    use zune_core::colorspace::ColorSpace;
+    use zune_core::options::DecoderOptions;
+    let options = DecoderOptions::default().jpeg_set_out_colorspace(ColorSpace::RGB).set_max_width(1 << 16).set_max_height(1 << 16);
+    let mut dec = zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(bytes), options);
+    let data = dec.decode().map_err(|e| anyhow!("cannot decode jpg image: {e:?}"))?;
+    let info = dec.info().ok_or_else(|| anyhow!("cannot decode jpg image: no header"))?;
+    let (w, h) = (info.width as u32, info.height as u32);
+    check_size(w as u64, h as u64)?;
+    if data.len() != w as usize * h as usize * 3 {
+        bail!("cannot decode jpg image: {} bytes for {w}x{h} RGB", data.len());
+    }
+    Ok((w, h, Samples { values: data.into_iter().map(u16::from).collect(), channels: 3, bits: 8, alpha: false }))
 }
 
 fn decode_exr(bytes: &[u8]) -> Result<Image> {
@@ -148,6 +219,46 @@ fn decode_exr(bytes: &[u8]) -> Result<Image> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// PNG kinds the `png` crate hands back differently (16-bit, grey + alpha, a
+    /// palette with transparency, 1-bit grey) decode to the same raw RGBA as the
+    /// `image` crate reads them.
+    #[test]
+    fn png_kinds_decode_as_the_image_crate_reads_them() {
+        fn encode(w: u32, h: u32, color: png::ColorType, depth: png::BitDepth, data: &[u8], palette: Option<(&[u8], &[u8])>) -> Vec<u8> {
+            let mut buf = Vec::new();
+            let mut e = png::Encoder::new(&mut buf, w, h);
+            e.set_color(color);
+            e.set_depth(depth);
+            if let Some((plte, trns)) = palette {
+                e.set_palette(plte.to_vec());
+                e.set_trns(trns.to_vec());
+            }
+            let mut wr = e.write_header().unwrap();
+            wr.write_image_data(data).unwrap();
+            wr.finish().unwrap();
+            buf
+        }
+        let rgb16: Vec<u8> = [0u16, 65535, 32768, 1, 300, 65000].iter().flat_map(|v| v.to_be_bytes()).collect();
+        let cases = [
+            encode(2, 1, png::ColorType::Rgb, png::BitDepth::Sixteen, &rgb16, None),
+            encode(2, 1, png::ColorType::GrayscaleAlpha, png::BitDepth::Eight, &[10, 255, 200, 7], None),
+            encode(3, 1, png::ColorType::Indexed, png::BitDepth::Eight, &[0, 1, 1], Some((&[255, 0, 0, 0, 0, 255], &[128]))),
+            encode(8, 1, png::ColorType::Grayscale, png::BitDepth::One, &[0b1010_0000], None),
+        ];
+        for (n, bytes) in cases.iter().enumerate() {
+            let ours = Image::decode(bytes, "png", true).unwrap();
+            let theirs = image::load_from_memory(bytes).unwrap().to_rgba16();
+            assert_eq!((ours.width, ours.height), theirs.dimensions(), "case {n}");
+            for (x, y, p) in theirs.enumerate_pixels() {
+                let want = p.0.map(|v| v as f32 / 65535.0);
+                let got = ours.texel(x, y);
+                for c in 0..4 {
+                    assert!((got[c] - want[c]).abs() < 1e-6, "case {n} pixel ({x}, {y}) channel {c}: {got:?} vs {want:?}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn png_is_srgb_decoded_unless_raw() {
