@@ -120,28 +120,7 @@ impl Sampler for HaltonSampler {
             *o = self.value_of(key, index, d);
         }
     }
-    #[inline]
-    fn set_dimension(&mut self, dim: u32) {
-        self.dim = dim;
-    }
-    fn dimension(&self) -> u32 {
-        self.dim
-    }
-    #[inline]
-    fn next_1d(&mut self) -> f32 {
-        let d = self.dim;
-        self.dim = self.dim.saturating_add(1);
-        self.value_cached(d)
-    }
-    #[inline]
-    fn next_2d(&mut self) -> [f32; 2] {
-        let d = self.dim;
-        self.dim = self.dim.saturating_add(2);
-        [self.value_cached(d), self.value_cached(d.saturating_add(1))]
-    }
-    fn clone_box(&self) -> Box<dyn Sampler> {
-        Box::new(self.clone())
-    }
+    super::dimension_methods!(value_cached);
     fn to_any(&self) -> Option<super::AnySampler> {
         Some(super::AnySampler::Halton(self.clone()))
     }

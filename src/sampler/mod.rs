@@ -86,10 +86,13 @@ pub trait Sampler: Send + Sync {
 
 /// The [`Sampler`] methods of a sampler whose values are a pure function of the
 /// dimension (its `value(d)` and `dim` field): dimension bookkeeping, `next_1d`,
-/// `next_2d` and `clone_box`. Used inside `impl Sampler for …` by `halton`,
-/// `hammersley` and `sobol`.
+/// `next_2d` and `clone_box`. Used inside `impl Sampler for …` by `halton` (with its
+/// cached `value_cached(d)`), `hammersley` and `sobol`.
 macro_rules! dimension_methods {
     () => {
+        $crate::sampler::dimension_methods!(value);
+    };
+    ($value:ident) => {
         #[inline]
         fn set_dimension(&mut self, dim: u32) {
             self.dim = dim;
@@ -101,13 +104,13 @@ macro_rules! dimension_methods {
         fn next_1d(&mut self) -> f32 {
             let d = self.dim;
             self.dim = self.dim.saturating_add(1);
-            self.value(d)
+            self.$value(d)
         }
         #[inline]
         fn next_2d(&mut self) -> [f32; 2] {
             let d = self.dim;
             self.dim = self.dim.saturating_add(2);
-            [self.value(d), self.value(d.saturating_add(1))]
+            [self.$value(d), self.$value(d.saturating_add(1))]
         }
         fn clone_box(&self) -> Box<dyn Sampler> {
             Box::new(self.clone())
