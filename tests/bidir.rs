@@ -92,16 +92,36 @@ fn vcm_agrees_with_path() {
     check("vcm cornell-glass", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
 }
 
+/// Fewer light subpaths than pixels and camera vertices joined to one vertex drawn
+/// from the pass's pool of light vertices (`vcm_light_paths`, `vcm_connect_draws`):
+/// the light-tracing and merging normalisations, the pool's estimate factor and the
+/// MIS counts keep `vcm` (and connections alone, `bpt`) consistent with `path`.
+#[test]
+fn vcm_with_fewer_light_subpaths_and_pool_draws_agrees_with_path() {
+    let pool = |c: RenderConfig| c.with("vcm_light_paths", 0.25).with("vcm_connect_draws", 1).with("passes", 256);
+    let reference = render("cornell-glass", cfg("path", 32, 512, 31));
+    let img = render("cornell-glass", pool(RenderConfig { seed: 33, ..cfg("vcm", 32, 1, 0) }));
+    check("vcm pool cornell-glass", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+    let reference = render("cornell", cfg("path", 32, 512, 34));
+    let img = render("cornell", pool(RenderConfig { seed: 35, ..cfg("vcm", 32, 1, 0) }).with("vcm_mode", "bpt"));
+    check("vcm bpt pool cornell", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+}
+
 /// Same seed ⇒ same bits for 1 and 2 threads (the light-tracing splats included).
 #[test]
 fn images_are_bit_identical_for_any_thread_count() {
-    for (integrator, extra) in [("bdpt", None), ("vcm", Some(4u32))] {
+    let pool = Some((4u32, 0.3f32, 2u32));
+    for (integrator, extra) in [("bdpt", None), ("vcm", Some((4u32, 1.0f32, 0u32))), ("vcm", pool)] {
         let run = |threads| {
             let c = RenderConfig { threads, ..cfg(integrator, 40, 4, 5) };
-            let c = if let Some(p) = extra { c.with("passes", p) } else { c };
+            let c = if let Some((p, f, m)) = extra {
+                c.with("passes", p as i64).with("vcm_light_paths", f as f64).with("vcm_connect_draws", m as i64)
+            } else {
+                c
+            };
             render("cornell-glass", c).pixels
         };
-        assert!(run(1) == run(2), "{integrator}: 1 and 2 threads differ");
+        assert!(run(1) == run(2), "{integrator} {extra:?}: 1 and 2 threads differ");
     }
 }
 
@@ -139,11 +159,15 @@ fn strategy_images_add_up_to_the_image() {
 fn vcm_resumes_bit_identically() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("v.checkpoint.json").to_string_lossy().into_owned();
-    let c = |passes: u32| cfg("vcm", 24, 1, 8).with("passes", passes).with("checkpoint_file", file.clone());
-    let full = render("cornell", c(6));
-    render("cornell", c(4).with("checkpoint_every", 2));
-    let resumed = render("cornell", c(6).with("resume", true));
-    assert!(full.pixels == resumed.pixels);
+    for draws in [0u32, 1] {
+        let c = |passes: u32| {
+            cfg("vcm", 24, 1, 8).with("passes", passes).with("checkpoint_file", file.clone()).with("vcm_connect_draws", draws as i64)
+        };
+        let full = render("cornell", c(6));
+        render("cornell", c(4).with("checkpoint_every", 2));
+        let resumed = render("cornell", c(6).with("resume", true));
+        assert!(full.pixels == resumed.pixels, "vcm_connect_draws {draws}");
+    }
 }
 
 /// Bad settings are named.
@@ -154,6 +178,8 @@ fn bad_settings_are_named() {
     assert!(err(cfg("bdpt", 8, 1, 0).with("bdpt_mis", "max")).contains("bdpt_mis"));
     assert!(err(cfg("vcm", 8, 1, 0).with("vcm_radius", -1.0)).contains("vcm_radius"));
     assert!(err(cfg("bdpt", 8, 1, 0).with("vcm_mode", "lt")).contains("vcm_mode"));
+    assert!(err(cfg("vcm", 8, 1, 0).with("vcm_light_paths", 0.0)).contains("vcm_light_paths"));
+    assert!(err(cfg("vcm", 8, 1, 0).with("vcm_connect_draws", 1000)).contains("vcm_connect_draws"));
 }
 
 /// An open scene lit only by a constant environment (the Cornell box, ceiling light

@@ -1,6 +1,6 @@
 //! `bdpt`: bidirectional path tracing (Veach 1997; pbrt-v4's `BDPTIntegrator`), as
-//! `vcm` with connections only: `spp` passes, each one light and one camera subpath
-//! per pixel, every (s, t) technique under one MIS weight (`bdpt_mis`).
+//! `vcm` with connections only: `spp` passes, each W·H light subpaths and one camera
+//! subpath per pixel, every (s, t) technique under one MIS weight (`bdpt_mis`).
 
 use super::mis::Heuristic;
 use super::pass::run_pass;
@@ -38,7 +38,7 @@ impl BdptIntegrator {
         let cam = &world.scene.camera;
         let (w, h) = (cam.width, cam.height);
         let spp = self.cfg.spp;
-        let ctx = Ctx::new(world, self.h, Mode::parse("bpt")?, self.cfg.depth_limit(), self.rr.as_ref(), 1.0);
+        let ctx = Ctx::new(world, self.h, Mode::parse("bpt")?, self.cfg.depth_limit(), self.rr.as_ref(), 1.0, w * h, None);
         let cam_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, Some(spp as u64))?;
         let light_sampler = cam_sampler.clone();
         let mut grid = super::grid::HashGrid::default();

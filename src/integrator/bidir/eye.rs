@@ -41,6 +41,25 @@ pub struct MergeSet<'a> {
     pub grid: &'a HashGrid,
 }
 
+/// The pass's light vertices, when each camera vertex is joined to
+/// [`super::Ctx::pool_draws`] of them drawn uniformly (Davidovič et al. 2014's light
+/// vertex cache) instead of to every vertex of its own light subpath.
+pub struct Pool<'a> {
+    /// All light vertices of the pass.
+    pub vertices: &'a [LightVertex],
+    /// Vertices / (draws · light subpaths): one drawn vertex's estimate factor.
+    pub scale: f32,
+}
+
+/// Dimension offset within a bounce of the draw from the pool (the one the `BOUNCE_*`
+/// layout leaves free).
+const BOUNCE_POOL: u32 = 7;
+const _: () = assert!(
+    BOUNCE_POOL < crate::sampler::DIMS_PER_BOUNCE
+        && BOUNCE_POOL > crate::sampler::BOUNCE_RR
+        && BOUNCE_POOL >= crate::sampler::BOUNCE_BSDF_DIR + 2
+);
+
 /// Smallest cosine between the normals of a merged light vertex and camera vertex
 /// (as `sppm`'s photon test: light on another face of a corner is not merged).
 const MERGE_NORMAL_COS: f32 = crate::integrator::progressive::sppm::NORMAL_COS;
@@ -54,6 +73,7 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
     y: u32,
     index: u64,
     light_path: &[LightVertex],
+    pool: Option<&Pool>,
     merge: Option<&MergeSet>,
     rec: &mut R,
     stats: &mut TraversalStats,
@@ -105,15 +125,35 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
         if !bsdf.is_delta() {
             if mode.connect {
                 l += direct(ctx, s, bsdf, &it, wo, &partials, beta, len, rec, stats);
-                for v in light_path {
-                    if v.len + 1 + len > ctx.max_len {
-                        break;
+                if let Some(pool) = pool {
+                    // Stratified draws: one uniform number, m evenly spaced picks.
+                    s.set_dimension(bounce_dim(len - 1) + BOUNCE_POOL);
+                    let u = s.next_1d();
+                    let (m, n) = (ctx.pool_draws, pool.vertices.len());
+                    for k in 0..m {
+                        let i = (((k as f32 + u) / m as f32 * n as f32) as usize).min(n - 1);
+                        let v = &pool.vertices[i];
+                        if v.len + 1 + len > ctx.max_len {
+                            continue;
+                        }
+                        let (w, c) = connect(ctx, bsdf, &it, wo, &partials, v, stats);
+                        if w > 0.0 {
+                            let c = beta * c * pool.scale;
+                            l += c;
+                            rec.add(v.len + 1, len + 1, w, c);
+                        }
                     }
-                    let (w, c) = connect(ctx, bsdf, &it, wo, &partials, v, stats);
-                    if w > 0.0 {
-                        let c = beta * c;
-                        l += c;
-                        rec.add(v.len + 1, len + 1, w, c);
+                } else {
+                    for v in light_path {
+                        if v.len + 1 + len > ctx.max_len {
+                            break;
+                        }
+                        let (w, c) = connect(ctx, bsdf, &it, wo, &partials, v, stats);
+                        if w > 0.0 {
+                            let c = beta * c;
+                            l += c;
+                            rec.add(v.len + 1, len + 1, w, c);
+                        }
                     }
                 }
             }

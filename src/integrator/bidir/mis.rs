@@ -48,28 +48,41 @@ impl Heuristic {
 }
 
 /// Per-pass constants: which techniques are on and their relative sample counts.
+///
+/// Sample counts per camera subpath: emitter hits (s = 0) and direct light sampling
+/// (s = 1) 1 each, inner connections (s ≥ 2, t ≥ 2) `conn_count` (1 when every camera
+/// vertex is joined to its own light subpath; M / L̄ when it is joined to M vertices
+/// drawn from the pass's pool, L̄ light vertices per light subpath), light tracing
+/// `light_paths`, merging π r² · `light_paths`. The partials are kept in units where an
+/// inner connection counts 1, so with `conn_count` = 1 they are SmallVCM's.
 #[derive(Clone, Copy, Debug)]
 pub struct Factors {
     /// The heuristic.
     pub h: Heuristic,
-    /// mis(η) with η = π r² · light paths, 0 without merging.
+    /// mis(η) with η = π r² · light paths / `conn_count`, 0 without merging.
     pub vm_weight: f32,
     /// mis(1/η), 0 without connections.
     pub vc_weight: f32,
     /// Light subpaths per pass (the light-tracing technique's sample count).
     pub light_paths: f32,
+    /// light_paths / `conn_count`: the light-tracing count relative to a connection's.
+    pub lt_count: f32,
+    /// mis(`conn_count`).
+    pub conn: f32,
 }
 
 impl Factors {
     /// Factors for merging radius `r` (ignored unless `merge`), `light_paths` light
-    /// subpaths per pass.
-    pub fn new(h: Heuristic, connect: bool, merge: bool, r: f32, light_paths: f32) -> Self {
-        let eta = std::f32::consts::PI * r * r * light_paths;
+    /// subpaths per pass and inner connections counting `conn_count` per camera vertex.
+    pub fn new(h: Heuristic, connect: bool, merge: bool, r: f32, light_paths: f32, conn_count: f32) -> Self {
+        let eta = std::f32::consts::PI * r * r * light_paths / conn_count;
         Factors {
             h,
             vm_weight: if merge { h.mis(eta) } else { 0.0 },
             vc_weight: if connect && merge { h.mis(1.0 / eta) } else { 0.0 },
             light_paths,
+            lt_count: light_paths / conn_count,
+            conn: h.mis(conn_count),
         }
     }
 }
@@ -89,14 +102,15 @@ impl Partials {
     /// A light subpath leaving its emitter (tech. report eqs. 31–33 before the
     /// first hit): densities as [`super::lights::Emission`].
     pub fn light_start(f: &Factors, direct_pdf_a: f32, emission_pdf_w: f32, cos: f32, delta: bool, finite: bool) -> Self {
-        let dvcm = f.h.mis(direct_pdf_a / emission_pdf_w);
-        let dvc = if delta { 0.0 } else { f.h.mis(if finite { cos } else { 1.0 } / emission_pdf_w) };
+        // Both terms stand for techniques counted 1 (s = 1 and s = 0), not `conn_count`.
+        let dvcm = f.h.mis(direct_pdf_a / emission_pdf_w) / f.conn;
+        let dvc = if delta { 0.0 } else { f.h.mis(if finite { cos } else { 1.0 } / emission_pdf_w) / f.conn };
         Partials { dvcm, dvc, dvm: dvc * f.vc_weight }
     }
 
     /// A camera subpath leaving the eye with direction density `camera_pdf_w`.
     pub fn camera_start(f: &Factors, camera_pdf_w: f32) -> Self {
-        Partials { dvcm: f.h.mis(f.light_paths / camera_pdf_w), dvc: 0.0, dvm: 0.0 }
+        Partials { dvcm: f.h.mis(f.lt_count / camera_pdf_w), dvc: 0.0, dvm: 0.0 }
     }
 
     /// Completes the update on arriving at a vertex at squared distance `dist2`
@@ -137,7 +151,9 @@ impl Partials {
 /// `emission_pdf_w` from [`super::lights::emitter_pdfs`].
 #[inline]
 pub fn weight_hit(f: &Factors, cam: &Partials, direct_pdf_a: f32, emission_pdf_w: f32) -> f32 {
-    let w_camera = f.h.mis(direct_pdf_a) * cam.dvcm + f.h.mis(emission_pdf_w) * cam.dvc;
+    // dvcm stands for direct sampling (counted as this technique), dvc for techniques
+    // in connection units.
+    let w_camera = f.h.mis(direct_pdf_a) * cam.dvcm + f.conn * f.h.mis(emission_pdf_w) * cam.dvc;
     1.0 / (1.0 + w_camera)
 }
 
@@ -159,8 +175,10 @@ pub fn weight_direct(
 ) -> f32 {
     let h = f.h;
     let w_light = if delta { 0.0 } else { h.mis(bsdf_dir / (pick * direct_pdf_w)) };
-    let w_camera =
-        h.mis(emission_pdf_w * cos_geo.abs() / (direct_pdf_w * cos_at_light)) * (f.vm_weight + cam.dvcm + cam.dvc * h.mis(bsdf_rev));
+    // The camera side's techniques are in connection units; this one counts 1.
+    let w_camera = f.conn
+        * h.mis(emission_pdf_w * cos_geo.abs() / (direct_pdf_w * cos_at_light))
+        * (f.vm_weight + cam.dvcm + cam.dvc * h.mis(bsdf_rev));
     1.0 / (w_light + 1.0 + w_camera)
 }
 
@@ -169,7 +187,7 @@ pub fn weight_direct(
 /// its predecessor given the eye direction.
 #[inline]
 pub fn weight_camera(f: &Factors, light: &Partials, camera_pdf_a: f32, bsdf_rev: f32) -> f32 {
-    let w_light = f.h.mis(camera_pdf_a / f.light_paths) * (f.vm_weight + light.dvcm + light.dvc * f.h.mis(bsdf_rev));
+    let w_light = f.h.mis(camera_pdf_a / f.lt_count) * (f.vm_weight + light.dvcm + light.dvc * f.h.mis(bsdf_rev));
     1.0 / (w_light + 1.0)
 }
 

@@ -100,23 +100,35 @@ impl Path {
 
 /// Brute force: every technique's effective density (sample counts included), in the
 /// order s = 0 … k, then merges at j = 1 … k − 1.
-fn brute(p: &Path, merge: bool, eta: f32, n_light: f32) -> Vec<f32> {
+/// Inner connections (2 ≤ s ≤ k − 1) count `conn` samples, light tracing `n_light`,
+/// emitter hits and direct sampling 1.
+fn brute(p: &Path, merge: bool, eta: f32, n_light: f32, conn: f32) -> Vec<f32> {
     let k = p.k();
-    let mut q = Vec::new();
+    let mut raw = Vec::new();
     for s in 0..=k {
-        let mut v = if s == k { n_light } else { 1.0 };
+        let mut v = 1.0;
         for i in 0..s {
             v *= p.pl(i);
         }
         for j in s..k {
             v *= p.pc(j);
         }
-        q.push(v);
+        raw.push(v);
     }
+    let mut q: Vec<f32> = (0..=k)
+        .map(|s| {
+            raw[s]
+                * if s == k {
+                    n_light
+                } else if s >= 2 {
+                    conn
+                } else {
+                    1.0
+                }
+        })
+        .collect();
     if merge {
-        for j in 1..k {
-            q.push(eta * q[j] * p.pl(j));
-        }
+        q.extend((1..k).map(|j| eta * raw[j] * p.pl(j)));
     }
     q
 }
@@ -193,16 +205,18 @@ fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
 
 /// Over many random paths of 3–7 edges: (largest |weight − brute force|, largest
 /// |Σ weights − 1|, share of paths whose sum is off by more than 1 %).
-fn check(h: Heuristic, merge: bool, plant: bool) -> (f32, f32, f32) {
+/// `n_light` light subpaths per pass, inner connections counting `conn` (1: each camera
+/// vertex joined to its own light subpath).
+fn check(h: Heuristic, merge: bool, plant: bool, n_light: f32, conn: f32) -> (f32, f32, f32) {
     let mut rng = Rng(0xB1D1 + merge as u64);
-    let (n_light, r) = (64.0 * 48.0, 0.01);
-    let f = Factors::new(h, true, merge, r, n_light);
+    let r = 0.01;
+    let f = Factors::new(h, true, merge, r, n_light, conn);
     let eta = PI * r * r * n_light;
     let (mut worst_w, mut worst_sum, mut off) = (0.0f32, 0.0f32, 0usize);
     let trials = 2000;
     for t in 0..trials {
         let p = random_path(&mut rng, 3 + t % 5);
-        let q = brute(&p, merge, eta, n_light);
+        let q = brute(&p, merge, eta, n_light, conn);
         let qb: Vec<f64> = q.iter().map(|&v| (h.mis(1.0) as f64) * (v as f64).powi(if h == Heuristic::Power { 2 } else { 1 })).collect();
         let total: f64 = qb.iter().sum();
         let w = recursive(&p, &f, merge, plant);
@@ -217,12 +231,22 @@ fn check(h: Heuristic, merge: bool, plant: bool) -> (f32, f32, f32) {
     (worst_w, worst_sum, off as f32 / trials as f32)
 }
 
+/// (light subpaths per pass, inner-connection count): one per pixel and own light
+/// subpath (SmallVCM); a quarter of the pixels; a quarter with one vertex drawn from
+/// the pool of ~2.5 vertices per subpath; twice the pixels with three drawn.
+const COUNTS: [(f32, f32); 4] = [(64.0 * 48.0, 1.0), (64.0 * 12.0, 1.0), (64.0 * 12.0, 0.4), (64.0 * 96.0, 1.2)];
+
 #[test]
 fn recursive_weights_equal_the_heuristic_and_sum_to_one() {
     for h in [Heuristic::Balance, Heuristic::Power] {
         for merge in [false, true] {
-            let (w, s, _) = check(h, merge, false);
-            assert!(w < 2e-3 && s < 2e-3, "{h:?} merge {merge}: worst weight error {w}, worst sum error {s}");
+            for (n_light, conn) in COUNTS {
+                let (w, s, _) = check(h, merge, false, n_light, conn);
+                assert!(
+                    w < 2e-3 && s < 2e-3,
+                    "{h:?} merge {merge} {n_light} light paths, connections ×{conn}: worst weight error {w}, worst sum error {s}"
+                );
+            }
         }
     }
 }
@@ -230,7 +254,9 @@ fn recursive_weights_equal_the_heuristic_and_sum_to_one() {
 #[test]
 fn planted_wrong_reverse_density_breaks_the_sum() {
     for h in [Heuristic::Balance, Heuristic::Power] {
-        let (_, s, off) = check(h, true, true);
-        assert!(s > 0.1 && off > 0.3, "{h:?}: planted bug not caught (worst sum error {s}, {off} of paths off)");
+        for (n_light, conn) in COUNTS {
+            let (_, s, off) = check(h, true, true, n_light, conn);
+            assert!(s > 0.1 && off > 0.3, "{h:?}, connections ×{conn}: planted bug not caught (worst sum error {s}, {off} of paths off)");
+        }
     }
 }

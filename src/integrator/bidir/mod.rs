@@ -1,15 +1,18 @@
 //! Bidirectional estimators: `bdpt` (bidirectional path tracing, Veach 1997) and `vcm`
 //! (vertex connection and merging, Georgiev et al. 2012), organised as SmallVCM.
 //!
-//! Both run in passes. In each pass every pixel traces one light subpath (its own
-//! sampler stream, [`pass::light_stream`]) and one camera subpath (the pixel's
-//! stream; sample index = pass), so the light-tracing technique has W·H samples per
-//! pass. The camera subpath is joined to its pixel's light subpath by every
-//! technique: emitters hit (s = 0), direct light sampling (s = 1), connections of
-//! inner vertices, and the light subpath's vertices are joined to the eye (t = 1,
-//! splatted into the pixel they project to). `vcm` also merges each camera vertex
-//! with all light vertices of the pass within a shrinking radius. One MIS weight
-//! covers all techniques ([`mis`], constant cost per connection).
+//! Both run in passes. In each pass N light subpaths are traced (subpath j on its own
+//! sampler stream, [`pass::light_stream`]; N = W·H for `bdpt`, `vcm_light_paths` × W·H
+//! for `vcm`) and one camera subpath per pixel (the pixel's stream; sample index =
+//! pass), so the light-tracing technique has N samples per pass. Pixel p's camera
+//! subpath is joined to light subpath p mod N by every technique: emitters hit
+//! (s = 0), direct light sampling (s = 1), connections of inner vertices, and the
+//! light subpath's vertices are joined to the eye (t = 1, splatted into the pixel
+//! they project to). `vcm` by default joins each camera vertex to one vertex drawn
+//! from all light vertices of the pass instead of to those of its own subpath
+//! (`vcm_connect_draws`), and merges it with all light vertices of the pass within a
+//! shrinking radius. One MIS weight covers all techniques ([`mis`], constant cost per
+//! connection).
 //!
 //! Files: [`lights`] (emission and direct-sampling densities), [`subpath`] (light
 //! subpaths, the scattering step), [`eye`] (camera subpaths and the techniques
@@ -88,15 +91,40 @@ pub struct Ctx<'a> {
     pub radius: f32,
     /// 1 / (π r² · light subpaths): the merging density normalisation.
     pub vm_norm: f32,
+    /// Light subpaths per pass (camera subpath p is joined to light subpath p mod this).
+    pub light_paths: u32,
+    /// Light vertices each camera vertex is joined to, drawn from the pass's pool; 0:
+    /// every vertex of its own light subpath (SmallVCM).
+    pub pool_draws: u32,
 }
 
 impl<'a> Ctx<'a> {
-    /// Context of a pass with merging radius `radius`.
-    pub fn new(world: &'a World, h: mis::Heuristic, mode: Mode, max_depth: u32, rr: &'a dyn RussianRoulette, radius: f32) -> Self {
-        let cam = &world.scene.camera;
-        let light_paths = (cam.width * cam.height) as f32;
-        let f = Factors::new(h, mode.connect, mode.merge, radius, light_paths);
-        let vm_norm = 1.0 / (std::f32::consts::PI * radius * radius * light_paths);
-        Ctx { world, f, mode, max_len: max_depth.saturating_add(1), rr, radius, vm_norm }
+    /// Context of a pass with merging radius `radius` and `light_paths` light subpaths
+    /// (at least 1): the light-tracing and merging normalisations and the MIS sample
+    /// counts use that count. `joins` is how camera vertices are joined to light
+    /// vertices: `None` to every vertex of their own light subpath, `Some((m, lbar))`
+    /// to m vertices drawn from the pass's pool, whose MIS count is m / `lbar` (`lbar`:
+    /// light vertices per light subpath, a constant of the run so that the weights do
+    /// not depend on the pass's own samples).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        world: &'a World,
+        h: mis::Heuristic,
+        mode: Mode,
+        max_depth: u32,
+        rr: &'a dyn RussianRoulette,
+        radius: f32,
+        light_paths: u32,
+        joins: Option<(u32, f32)>,
+    ) -> Self {
+        let light_paths = light_paths.max(1);
+        let n = light_paths as f32;
+        let (pool_draws, conn_count) = match joins {
+            Some((m, lbar)) if m > 0 && lbar > 0.0 => (m, m as f32 / lbar),
+            _ => (0, 1.0),
+        };
+        let f = Factors::new(h, mode.connect, mode.merge, radius, n, conn_count);
+        let vm_norm = 1.0 / (std::f32::consts::PI * radius * radius * n);
+        Ctx { world, f, mode, max_len: max_depth.saturating_add(1), rr, radius, vm_norm, light_paths, pool_draws }
     }
 }

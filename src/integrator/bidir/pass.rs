@@ -1,12 +1,13 @@
-//! One pass of the bidirectional estimators: a light subpath per pixel (rows in
-//! parallel; their light-tracing splats kept per row), the merging grid over all
-//! light vertices (when merging), then a camera subpath per pixel joined to its own
-//! light subpath and merged with the pass's light vertices. The splats are added row
-//! by row in row order after the camera phase, so the image is bit-identical for any
+//! One pass of the bidirectional estimators: N light subpaths (chunks in parallel;
+//! their light-tracing splats kept per chunk), the merging grid over all light
+//! vertices (when merging), then a camera subpath per pixel p joined to light subpath
+//! p mod N (or to vertices drawn from all light vertices of the pass, with
+//! `vcm_connect_draws`) and merged with the pass's light vertices. The splats are added chunk by
+//! chunk in order after the camera phase, so the image is bit-identical for any
 //! thread count.
 
 use super::Ctx;
-use super::eye::{MergeSet, Record, trace_eye};
+use super::eye::{MergeSet, Pool, Record, trace_eye};
 use super::grid::HashGrid;
 use super::subpath::{LightVertex, Splat, trace_light};
 use crate::accel::TraversalStats;
@@ -16,12 +17,16 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// Sampler stream of pixel `pixel`'s light subpaths (bit 62 set, bit 63 clear: never a
-/// pixel's camera stream nor `sppm`'s photon streams).
+/// Sampler stream of light subpath `j` (sample index = pass; bit 62 set, bit 63 clear:
+/// never a pixel's camera stream nor `sppm`'s photon streams). With one light subpath
+/// per pixel, j is the pixel, as SmallVCM pairs them.
 #[inline]
-pub fn light_stream(pixel: u64) -> u64 {
-    (hash_words(&[pixel, 0xB1D1]) & !(1 << 63)) | 1 << 62
+pub fn light_stream(j: u64) -> u64 {
+    (hash_words(&[j, 0xB1D1]) & !(1 << 63)) | 1 << 62
 }
+
+/// Light subpaths traced by one task of the light phase.
+const LIGHT_CHUNK: u32 = 64;
 
 /// One technique's contribution at one pixel (per-strategy images).
 #[derive(Clone, Copy, Debug)]
@@ -75,36 +80,37 @@ pub struct PassOut {
     pub items: Vec<Item>,
 }
 
-struct LightRow {
+struct LightChunk {
     vertices: Vec<LightVertex>,
-    /// End of each pixel's light subpath in `vertices`.
+    /// End of each light subpath of the chunk in `vertices`.
     ends: Vec<u32>,
     splats: Vec<Splat>,
     stats: TraversalStats,
 }
 
-/// Runs pass `index` (the sample index of every pixel's camera and light streams),
-/// merging through `grid` (rebuilt here when merging; its buffers kept for the next pass).
+/// Runs pass `index` (the sample index of every camera and light stream), merging
+/// through `grid` (rebuilt here when merging; its buffers kept for the next pass).
 pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler, index: u64, record: bool, grid: &mut HashGrid) -> PassOut {
     let cam = &ctx.world.scene.camera;
     let (w, h) = (cam.width, cam.height);
+    let n_light = ctx.light_paths;
     let t0 = Instant::now();
-    let rows: Vec<LightRow> = (0..h)
+    let chunks: Vec<LightChunk> = (0..n_light.div_ceil(LIGHT_CHUNK))
         .into_par_iter()
         .with_max_len(1)
         .map_init(
             || light_sampler.clone(),
-            |s, y| {
-                let mut row = LightRow {
+            |s, c| {
+                let paths = c * LIGHT_CHUNK..((c + 1) * LIGHT_CHUNK).min(n_light);
+                let mut row = LightChunk {
                     vertices: Vec::new(),
-                    ends: Vec::with_capacity(w as usize),
+                    ends: Vec::with_capacity(paths.len()),
                     splats: Vec::new(),
                     stats: TraversalStats::default(),
                 };
                 crate::sampler::with_sampler!(&mut *s, s => {
-                    for x in 0..w {
-                        let pixel = y as u64 * w as u64 + x as u64;
-                        trace_light(ctx, s, light_stream(pixel), index, &mut row.vertices, &mut row.splats, &mut row.stats);
+                    for j in paths {
+                        trace_light(ctx, s, light_stream(j as u64), index, &mut row.vertices, &mut row.splats, &mut row.stats);
                         row.ends.push(row.vertices.len() as u32);
                     }
                 });
@@ -112,38 +118,48 @@ pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler,
             },
         )
         .collect();
+    // Light subpath j's vertices.
+    let light_path = |j: u32| -> &[LightVertex] {
+        let r = &chunks[(j / LIGHT_CHUNK) as usize];
+        let k = (j % LIGHT_CHUNK) as usize;
+        let start = if k == 0 { 0 } else { r.ends[k - 1] as usize };
+        &r.vertices[start..r.ends[k] as usize]
+    };
     let mut out = PassOut { t_light: t0.elapsed().as_secs_f64(), ..Default::default() };
-    out.light_vertices = rows.iter().map(|r| r.vertices.len() as u64).sum();
+    out.light_vertices = chunks.iter().map(|r| r.vertices.len() as u64).sum();
     let t1 = Instant::now();
     let mut all = Vec::new();
-    if ctx.mode.merge {
+    let use_pool = ctx.mode.connect && ctx.pool_draws > 0;
+    if ctx.mode.merge || use_pool {
         all.reserve(out.light_vertices as usize);
-        for r in &rows {
+        for r in &chunks {
             all.extend_from_slice(&r.vertices);
         }
+    }
+    if ctx.mode.merge {
         let points: Vec<Vec3> = all.iter().map(|v| v.it.p).collect();
         grid.build(&points, ctx.radius);
     }
     let merge = ctx.mode.merge.then_some(MergeSet { vertices: &all, grid: &*grid });
+    let pool = (use_pool && !all.is_empty())
+        .then(|| Pool { vertices: &all, scale: all.len() as f32 / (ctx.pool_draws as f32 * ctx.light_paths as f32) });
     out.t_grid = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
-    let eye_rows: Vec<(Vec<DVec3>, TraversalStats, u64, Vec<Item>)> = rows
-        .par_iter()
+    let eye_rows: Vec<(Vec<DVec3>, TraversalStats, u64, Vec<Item>)> = (0..h)
+        .into_par_iter()
         .with_max_len(1)
-        .enumerate()
         .map_init(
             || cam_sampler.clone(),
-            |s, (y, lrow)| {
+            |s, y| {
                 let mut st = TraversalStats::default();
                 let mut bad = 0u64;
                 let mut rec = RowRecord { on: record, pixel: 0, items: Vec::new() };
                 let mut px = Vec::with_capacity(w as usize);
                 crate::sampler::with_sampler!(&mut *s, s => {
                     for x in 0..w {
-                        let start = if x == 0 { 0 } else { lrow.ends[x as usize - 1] as usize };
-                        let path = &lrow.vertices[start..lrow.ends[x as usize] as usize];
-                        rec.pixel = y as u32 * w + x;
-                        let l = trace_eye(ctx, s, x, y as u32, index, path, merge.as_ref(), &mut rec, &mut st);
+                        rec.pixel = y * w + x;
+                        let path = light_path(rec.pixel % n_light);
+                        let l = trace_eye(ctx, s, x, y, index, path, pool.as_ref(), merge.as_ref(), &mut rec, &mut st);
                         if is_finite(l) {
                             px.push(l.as_dvec3());
                         } else {
@@ -163,7 +179,7 @@ pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler,
         out.nonfinite += bad;
         out.items.extend(items);
     }
-    for r in &rows {
+    for r in &chunks {
         out.traversal.add(&r.stats);
         for sp in &r.splats {
             if is_finite(sp.value) {

@@ -2,9 +2,12 @@
 //! unified path sampling), progressive as SmallVCM's `VertexCM`: pass i (from 1)
 //! merges within r_i = r₀ · i^((α−1)/2), α = 0.75 unless `alpha` is set, r₀ =
 //! `vcm_radius` or a fraction of the scene's bounding radius; the image after p passes
-//! is the mean of the passes' estimates. `vcm_mode` restricts the techniques for
-//! ablations (SmallVCM's algorithms): `bpt` connections only, `ppm` merging at the
-//! first non-delta camera vertex only (no MIS), `lt` light tracing only.
+//! is the mean of the passes' estimates. A pass traces `vcm_light_paths` × W·H light
+//! subpaths (½ by default) and joins each camera vertex to `vcm_connect_draws` vertices
+//! drawn from all of the pass's light vertices (1 by default; 0: every vertex of its own
+//! light subpath — with `vcm_light_paths = 1` SmallVCM's pass). `vcm_mode` restricts
+//! the techniques for ablations (SmallVCM's algorithms): `bpt` connections only, `ppm`
+//! merging at the first non-delta camera vertex only (no MIS), `lt` light tracing only.
 
 use super::mis::Heuristic;
 use super::pass::run_pass;
@@ -32,8 +35,17 @@ crate::params! {
         vcm_mode: String = "vcm",
         /// Initial merging radius r₀ (scene units); `auto` = 0.01 × the scene's bounding radius.
         vcm_radius: Option<f32> = "auto",
+        /// Light subpaths per pass as a fraction of the pixel count (1 = one per pixel, as SmallVCM); pixel p's camera subpath is joined to light subpath p mod their number.
+        vcm_light_paths: f32 = "0.5",
+        /// Light vertices each camera vertex is joined to, drawn (stratified) from all light vertices of the pass (Davidovič et al. 2014's light vertex cache); 0 = every vertex of its own light subpath (SmallVCM).
+        vcm_connect_draws: u32 = "1",
     }
 }
+
+/// Light subpaths of the pilot that measures light vertices per subpath.
+const PILOT_PATHS: u64 = 4096;
+/// First light stream of the pilot (above any pass's light subpaths).
+const PILOT_STREAMS: u64 = 1 << 40;
 
 /// The vertex connection and merging integrator.
 pub struct VcmIntegrator {
@@ -41,6 +53,8 @@ pub struct VcmIntegrator {
     h: Heuristic,
     mode: Mode,
     radius: Option<f32>,
+    light_fraction: f32,
+    draws: u32,
     alpha: f32,
     prog: ProgressiveParams,
     rr: Box<dyn RussianRoulette>,
@@ -55,12 +69,18 @@ impl VcmIntegrator {
         let p = VcmParams::read(r)?;
         let b = BidirParams::read(r)?;
         if prog.photons_per_pass.is_some() {
-            bail!("vcm traces one light subpath per pixel and pass; photons_per_pass does not apply");
+            bail!("vcm sets its light subpaths per pass with vcm_light_paths; photons_per_pass does not apply");
         }
         if let Some(r) = p.vcm_radius
             && !(r > 0.0 && r.is_finite())
         {
             bail!("vcm_radius must be positive and finite, got {r}");
+        }
+        if p.vcm_connect_draws > 64 {
+            bail!("vcm_connect_draws must be at most 64, got {}", p.vcm_connect_draws);
+        }
+        if !(p.vcm_light_paths > 0.0 && p.vcm_light_paths <= 64.0) {
+            bail!("vcm_light_paths must be in (0, 64] (a fraction of the pixel count), got {}", p.vcm_light_paths);
         }
         let alpha = if cfg.params.contains("alpha") { prog.alpha } else { DEFAULT_ALPHA };
         Ok(VcmIntegrator {
@@ -68,6 +88,8 @@ impl VcmIntegrator {
             h: Heuristic::parse(&b.bdpt_mis)?,
             mode: Mode::parse(&p.vcm_mode)?,
             radius: p.vcm_radius,
+            light_fraction: p.vcm_light_paths,
+            draws: p.vcm_connect_draws,
             alpha,
             prog,
             rr,
@@ -81,6 +103,26 @@ impl VcmIntegrator {
         (r0 as f64 * (i as f64).powf(0.5 * (alpha as f64 - 1.0))).max(1e-7) as f32
     }
 
+    /// Light vertices stored per light subpath, from a pilot of [`PILOT_PATHS`] light
+    /// subpaths on streams no pass uses: the same for every run of a scene and
+    /// configuration (resumed or not, any thread count), and independent of the
+    /// passes' own samples, so the MIS weights that use it stay exact.
+    fn light_vertices_per_path(&self, world: &World, sampler: &crate::sampler::AnySampler, r0: f32) -> f32 {
+        let ctx = Ctx::new(world, self.h, self.mode, self.cfg.depth_limit(), self.rr.as_ref(), r0, 1, None);
+        let (mut vertices, mut splats, mut stats) = (Vec::new(), Vec::new(), crate::accel::TraversalStats::default());
+        let mut s = sampler.clone();
+        let mut count = 0usize;
+        crate::sampler::with_sampler!(&mut s, s => {
+            for j in 0..PILOT_PATHS {
+                super::subpath::trace_light(&ctx, s, super::pass::light_stream(PILOT_STREAMS + j), 0, &mut vertices, &mut splats, &mut stats);
+                count += vertices.len();
+                vertices.clear();
+                splats.clear();
+            }
+        });
+        (count as f32 / PILOT_PATHS as f32).max(1.0 / PILOT_PATHS as f32)
+    }
+
     fn run_passes(&mut self, world: &World, on_pass: OnPass, record: bool) -> Result<(Film, RenderStats, Strategies, u32)> {
         let cam = &world.scene.camera;
         let (w, h) = (cam.width, cam.height);
@@ -88,9 +130,11 @@ impl VcmIntegrator {
         let budget = Budget::new(&self.prog);
         let counts = (budget.max_passes != u32::MAX).then_some(budget.max_passes as u64);
         let cam_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, counts)?;
+        let light_paths = ((npix as f64 * self.light_fraction as f64).round() as u64).clamp(1, u32::MAX as u64 / 2) as u32;
         let light_sampler = cam_sampler.clone();
         let mut grid = super::grid::HashGrid::default();
         let r0 = self.radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius);
+        let joins = (self.draws > 0 && self.mode.connect).then(|| (self.draws, self.light_vertices_per_path(world, &light_sampler, r0)));
         let mut sum = vec![DVec3::ZERO; npix];
         let mut pass = 0u32;
         let mut film = Film::new(w, h);
@@ -108,7 +152,7 @@ impl VcmIntegrator {
         let pb = crate::progress::progress_bar(counts.unwrap_or(0), self.quiet, "vcm");
         while budget.more(pass) {
             let r = Self::radius(r0, self.alpha, pass + 1);
-            let ctx = Ctx::new(world, self.h, self.mode, self.cfg.depth_limit(), self.rr.as_ref(), r);
+            let ctx = Ctx::new(world, self.h, self.mode, self.cfg.depth_limit(), self.rr.as_ref(), r, light_paths, joins);
             let out = run_pass(&ctx, &cam_sampler, &light_sampler, pass as u64, record, &mut grid);
             for (s, p) in sum.iter_mut().zip(&out.pixels) {
                 *s += *p;
@@ -137,6 +181,7 @@ impl VcmIntegrator {
         stats.seconds = budget.elapsed();
         let threads = rayon::current_num_threads() as f64;
         let paths = run as f64 * npix as f64;
+        let lpaths = run as f64 * light_paths as f64;
         let c = &mut self.counters;
         c.insert("passes".into(), pass as f64);
         c.insert("light_phase_s".into(), t_light);
@@ -144,7 +189,11 @@ impl VcmIntegrator {
         c.insert("camera_phase_s".into(), t_eye);
         c.insert("light_vertices".into(), vertices as f64);
         c.insert("final_radius".into(), Self::radius(r0, self.alpha, pass.max(1)) as f64);
-        c.insert("light_subpaths_per_s_per_thread".into(), paths / t_light.max(1e-9) / threads);
+        c.insert("light_subpaths_per_pass".into(), light_paths as f64);
+        if let Some((_, lbar)) = joins {
+            c.insert("pilot_light_vertices_per_subpath".into(), lbar as f64);
+        }
+        c.insert("light_subpaths_per_s_per_thread".into(), lpaths / t_light.max(1e-9) / threads);
         c.insert("camera_subpaths_per_s_per_thread".into(), paths / t_eye.max(1e-9) / threads);
         c.insert("passes_per_s".into(), run as f64 / stats.seconds.max(1e-9));
         Ok((film, stats, strategies, pass))
