@@ -366,4 +366,43 @@ mod tests {
         assert!(none.is_empty() && none.nearest_disc(Vec3::ZERO, Vec3::Z, 1.0, 0.0, 1.0).is_none());
         assert!(disc.nearest_disc(Vec3::NAN, Vec3::Z, 1.0, 0.0, 1.0).is_none());
     }
+
+    #[test]
+    fn nearest_disc_resolves_ties_as_the_row_scan() {
+        // Points on a lattice (exact coordinates) in three planes, queries at lattice
+        // points, cell centres and edges: many points at exactly the same distance,
+        // spread over the cells of a first box. The grid's scan order decides ties.
+        let mut pos = Vec::new();
+        for (k, z) in [0.0f32, 0.5, 3.0].into_iter().enumerate() {
+            for y in 0..40 {
+                for x in 0..40 {
+                    if (x + y + k) % 5 != 0 {
+                        pos.push(Vec3::new(x as f32 * 0.5, y as f32 * 0.5, z));
+                    }
+                }
+            }
+        }
+        let nrm = vec![Vec3::Z; pos.len()];
+        let items: Vec<(Vec3, u32)> = (0..pos.len() as u32).map(|i| (Vec3::Z, i)).collect();
+        let ids: Vec<u32> = (0..pos.len() as u32).collect();
+        let disc = DiscGrid::build(&pos, &nrm, &ids, 4.0);
+        let grid = PointGrid::build_spaced(&pos, items, 4.0);
+        let mut ties = 0;
+        for qy in 0..80 {
+            for qx in 0..80 {
+                let p = Vec3::new(qx as f32 * 0.25, qy as f32 * 0.25, if (qx + qy) % 3 == 0 { 0.25 } else { 0.0 });
+                for (max_r, thick) in [(0.6f32, 0.3f32), (2.0, 1.0), (40.0, 40.0)] {
+                    let filter = |it: &(Vec3, u32), at: Vec3| it.0.dot(Vec3::Z) >= 0.7 && (at - p).dot(Vec3::Z).abs() <= thick;
+                    let want = grid.nearest(p, max_r * max_r, &filter).map(|(i, d2)| (grid.item(i).1, d2));
+                    let got = disc.nearest_disc(p, Vec3::Z, thick, 0.7, max_r * max_r).map(|(i, d2)| (*disc.item(i), d2));
+                    assert_eq!(got, want, "query {p} r {max_r}");
+                    if let Some((_, d2)) = want {
+                        ties +=
+                            (pos.iter().filter(|q| (**q - p).length_squared() == d2 && (**q - p).z.abs() <= thick).count() > 1) as usize;
+                    }
+                }
+            }
+        }
+        assert!(ties > 5000, "{ties}");
+    }
 }
