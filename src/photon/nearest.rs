@@ -32,6 +32,12 @@ pub use photons::PhotonGrid;
 
 /// Points of a grid built over at most this many cells per point (plus a constant).
 const CELLS_PER_POINT: usize = 4;
+/// Cells of a grid at most (2^30: a cell number fits in 32 bits, and the starts of a
+/// grid's non-empty tiles fit 32-bit indices). A lower cap (2^26) made the cells of
+/// grids above ~5·10^7 surface photons wider than their spacing asks for, so each
+/// estimate scanned more photons: the precomputation's time per point grew with the
+/// count.
+const MAX_CELLS: usize = 1 << 30;
 /// Cell side in median nearest-neighbour distances: about a dozen points per cell
 /// of a surface, so the first box (one cell wide) nearly always holds the answer.
 pub(crate) const CELL_SPACINGS: f32 = 4.0;
@@ -151,7 +157,7 @@ impl<T> PointGrid<T> {
         let (lo, hi) = bounds(n, pos);
         let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ZERO) };
         let ext = hi - lo;
-        let max_cells = (CELLS_PER_POINT * n + 1024).min(1 << 26) as f64;
+        let max_cells = (CELLS_PER_POINT * n + 1024).min(MAX_CELLS) as f64;
         let mut cell = cell.max(ext.max_element() * 1e-6).max(1e-30);
         let count = |c: f32| ext.to_array().map(|e| ((e / c).floor() as i64 + 1).max(1));
         let tiles_of = |d: [i64; 3]| d.map(|x| (x + TILE - 1) / TILE);
@@ -171,7 +177,7 @@ impl<T> PointGrid<T> {
             entries: Vec::new(),
             order: Vec::new(),
         };
-        // At most 2^26 cells (`max_cells`): a cell number fits in 32 bits.
+        // At most `MAX_CELLS` cells: a cell number fits in 32 bits.
         let index: Vec<u32> = (0..n).into_par_iter().map(|i| g.cell_index(g.cell_of(pos(i))) as u32).collect();
         let (start, sort) = CellSort::build(index, tiles.iter().product::<i64>() as usize);
         g.start = start;
