@@ -2,10 +2,10 @@
 //! of precomputed irradiance, which answers tens of millions of k = 1 queries per
 //! render (one per final-gather ray).
 //!
-//! Points are counting-sorted by cell, cells numbered tile by tile (4³ cells, x
-//! fastest), so a row of cells along x inside a tile is one contiguous range and the
-//! rows a query reads lie close together; each point's (small) payload sits beside its position, so
-//! the filter reads the cache line the distance test loaded. A query scans the
+//! Points are sorted by cell (stable, in two cache-friendly passes: `nearest/sort.rs`),
+//! cells numbered tile by tile (4³ cells, x fastest), so a row of cells along x
+//! inside a tile is one contiguous range and the rows a query reads lie close
+//! together; each point's (small) payload sits beside its position, so the filter reads the cache line the distance test loaded. A query scans the
 //! cells overlapping the box of half-width ρ about it, starting at ρ = half a cell
 //! (2 × 2 × 2 cells, 4 contiguous ranges):
 //! when the best point passing the filter lies within ρ, every point closer than it
@@ -20,16 +20,24 @@
 
 use glam::Vec3;
 use rayon::prelude::*;
+use sort::CellSort;
 use starts::CellStarts;
 
 mod disc;
 mod photons;
+mod sort;
 mod starts;
 pub use disc::DiscGrid;
 pub use photons::PhotonGrid;
 
 /// Points of a grid built over at most this many cells per point (plus a constant).
 const CELLS_PER_POINT: usize = 4;
+/// Cells of a grid at most (2^30: a cell number fits in 32 bits, and the starts of a
+/// grid's non-empty tiles fit 32-bit indices). A lower cap (2^26) made the cells of
+/// grids above ~5·10^7 surface photons wider than their spacing asks for, so each
+/// estimate scanned more photons: the precomputation's time per point grew with the
+/// count.
+const MAX_CELLS: usize = 1 << 30;
 /// Cell side in median nearest-neighbour distances: about a dozen points per cell
 /// of a surface, so the first box (one cell wide) nearly always holds the answer.
 pub(crate) const CELL_SPACINGS: f32 = 4.0;
@@ -133,15 +141,23 @@ impl<T> PointGrid<T> {
     /// The grid's frame (bounds, cells of side `cell` — enlarged if the grid would
     /// exceed [`CELLS_PER_POINT`] cells per point — and cell starts) over `n` points
     /// at `pos(i)`, without entries, and the points in grid order (input order within
-    /// a cell): a counting sort, linear in the points.
+    /// a cell).
     pub(super) fn frame(n: usize, pos: &(impl Fn(usize) -> Vec3 + Sync), cell: f32) -> (Self, Vec<u32>) {
+        let (g, sort) = Self::frame_sorted(n, pos, cell);
+        (g, sort.order())
+    }
+
+    /// [`PointGrid::frame`] with the sort that moves arrays from input order to grid
+    /// order ([`CellSort::apply`]): a stable sort by cell in two cache-friendly
+    /// passes, linear in the points.
+    fn frame_sorted(n: usize, pos: &(impl Fn(usize) -> Vec3 + Sync), cell: f32) -> (Self, CellSort) {
         if n == 0 {
-            return (Self::default(), Vec::new());
+            return (Self::default(), CellSort::default());
         }
         let (lo, hi) = bounds(n, pos);
         let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ZERO) };
         let ext = hi - lo;
-        let max_cells = (CELLS_PER_POINT * n + 1024).min(1 << 26) as f64;
+        let max_cells = (CELLS_PER_POINT * n + 1024).min(MAX_CELLS) as f64;
         let mut cell = cell.max(ext.max_element() * 1e-6).max(1e-30);
         let count = |c: f32| ext.to_array().map(|e| ((e / c).floor() as i64 + 1).max(1));
         let tiles_of = |d: [i64; 3]| d.map(|x| (x + TILE - 1) / TILE);
@@ -161,12 +177,12 @@ impl<T> PointGrid<T> {
             entries: Vec::new(),
             order: Vec::new(),
         };
-        // At most 2^26 cells (`max_cells`): a cell number fits in 32 bits.
+        // At most `MAX_CELLS` cells: a cell number fits in 32 bits.
         let index: Vec<u32> = (0..n).into_par_iter().map(|i| g.cell_index(g.cell_of(pos(i))) as u32).collect();
-        let (start, order) = CellStarts::build(&index, tiles.iter().product::<i64>() as usize);
+        let (start, sort) = CellSort::build(index, tiles.iter().product::<i64>() as usize);
         g.start = start;
         let PointGrid { origin, cell, inv_cell, dims, tiles, start, .. } = g;
-        (PointGrid { origin, cell, inv_cell, dims, tiles, start, entries: Vec::new(), order: Vec::new() }, order)
+        (PointGrid { origin, cell, inv_cell, dims, tiles, start, entries: Vec::new(), order: Vec::new() }, sort)
     }
 }
 

@@ -13,7 +13,6 @@
 use super::PointGrid;
 use crate::photon::record::{decode_dir, dir_table, encode_dir};
 use glam::Vec3;
-use rayon::prelude::*;
 
 /// Points tested per block of a scan.
 pub(super) const BLOCK: usize = 8;
@@ -62,25 +61,25 @@ impl<P: Copy + Send + Sync> DiscGrid<P> {
         let n = x.len().min(y.len()).min(z.len()).min(normals.len()).min(items.len());
         let pos = |i: usize| Vec3::new(x[i], y[i], z[i]);
         let cell = super::spaced_cell(n, &pos, spacings);
-        let (cells, order) = PointGrid::<()>::frame(n, &pos, cell);
-        fn permute<T: Copy + Send + Sync>(v: Vec<T>, order: &[u32], pad: Option<T>) -> Vec<T> {
-            let mut out = Vec::with_capacity(order.len() + if pad.is_some() { BLOCK } else { 0 });
-            out.par_extend(order.par_iter().map(|&i| v[i as usize]));
-            drop(v);
+        let (cells, sort) = PointGrid::<()>::frame_sorted(n, &pos, cell);
+        // Each array moved into grid order through the sort's two passes (its input
+        // freed after the first), then padded.
+        let permute = |v: Vec<_>, pad: Option<_>| {
+            let mut out = sort.apply(v, if pad.is_some() { BLOCK } else { 0 });
             out.extend(pad.into_iter().flat_map(|p| std::iter::repeat_n(p, BLOCK)));
             out
-        }
+        };
         let far = Some(f32::INFINITY);
-        let (x, y, z) = (permute(x, &order, far), permute(y, &order, far), permute(z, &order, far));
-        DiscGrid {
-            x,
-            y,
-            z,
-            normals: permute(normals, &order, Some(0)),
-            items: permute(items, &order, None),
-            order: if keep_order { order } else { Vec::new() },
-            cells,
-        }
+        let (x, y, z) = (permute(x, far), permute(y, far), permute(z, far));
+        let normals = {
+            let mut out = sort.apply(normals, BLOCK);
+            out.extend(std::iter::repeat_n(0, BLOCK));
+            out
+        };
+        let items = sort.apply(items, 0);
+        // The input indices last, once the inputs are freed.
+        let order = if keep_order { sort.order() } else { Vec::new() };
+        DiscGrid { x, y, z, normals, items, order, cells }
     }
 }
 

@@ -6,13 +6,14 @@
 //! 64 cells) leads to the `TILE_CELLS + 1` starts of each non-empty tile, so the
 //! starts a query reads stay in the caches.
 
+#[cfg(test)]
 use super::TILE_CELLS;
 
 /// Slot of a tile without points.
-const EMPTY: u32 = u32::MAX;
+pub(super) const EMPTY: u32 = u32::MAX;
 
 /// Starts of the cells of the non-empty tiles (cells numbered tile by tile).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub(super) struct CellStarts {
     /// Per tile: where its `TILE_CELLS + 1` starts begin in `starts`, or [`EMPTY`].
     slot: Vec<u32>,
@@ -28,10 +29,18 @@ impl Default for CellStarts {
 }
 
 impl CellStarts {
-    /// Counting sort of points by cell: `cells[i]` is point i's cell (tile order) in a
-    /// grid of `tiles` tiles. Returns the starts and the points in cell order (input
-    /// order within a cell).
-    pub(super) fn build(cells: &[u32], tiles: usize) -> (Self, Vec<u32>) {
+    /// The starts from the per-tile slot table ([`EMPTY`] for a tile without points)
+    /// and the starts of the non-empty tiles' cells (built by [`super::sort::CellSort`]).
+    pub(super) fn from_parts(slot: Vec<u32>, starts: Vec<u32>) -> Self {
+        CellStarts { slot, starts }
+    }
+
+    /// Counting sort of points by cell in one pass: `cells[i]` is point i's cell
+    /// (tile order) in a grid of `tiles` tiles. Returns the starts and the points in
+    /// cell order (input order within a cell): the reference of the two-pass sort
+    /// the grids are built with ([`super::sort::CellSort`]).
+    #[cfg(test)]
+    pub(super) fn build_reference(cells: &[u32], tiles: usize) -> (Self, Vec<u32>) {
         let mut used = vec![false; tiles];
         for &c in cells {
             used[c as usize / TILE_CELLS] = true;
@@ -95,7 +104,7 @@ mod tests {
     fn ranges_equal_a_dense_counting_sort() {
         // Three tiles, the middle one empty; cells visited out of order.
         let cells: Vec<u32> = (0..500u32).map(|i| (i * 37 + i / 7) % 64 + if i % 3 == 0 { 128 } else { 0 }).collect();
-        let (s, order) = CellStarts::build(&cells, 3);
+        let (s, order) = CellStarts::build_reference(&cells, 3);
         let mut dense = vec![0u32; 3 * TILE_CELLS + 1];
         for &c in &cells {
             dense[c as usize + 1] += 1;
