@@ -97,7 +97,7 @@ pub struct RenderArgs {
     /// Accelerator: none | bvh | bvh4 | bvh8 | bvh8q (default bvh8).
     #[arg(long)]
     pub accel: Option<String>,
-    /// Russian roulette: `off`, `fixed[:q]`, `albedo` or `throughput[:min_depth]`.
+    /// Russian roulette: `off`, `fixed[:q]`, `albedo` or `throughput[:min_depth]`; default `auto` (`throughput:5` for `path`, `throughput` from bounce 3 otherwise).
     #[arg(long)]
     pub rr: Option<String>,
     /// Maximum number of bounces (default unbounded).

@@ -55,7 +55,7 @@ common! {
     "spp": u32 = "16", "Samples per pixel.";
     "sampler": String = "halton", "Sampler plug-in (`sampler` family below).";
     "accel": String = "bvh8", "Accelerator plug-in (`accel` family below).";
-    "rr": String = "throughput", "Russian-roulette policy `NAME[:PARAM]` (`rr` family below).";
+    "rr": String = "auto", "Russian-roulette policy `NAME[:PARAM]` (`rr` family below); `auto` = `throughput:5` for `path`, `throughput` (from bounce 3) for the other integrators.";
     "max_depth": Option<u32> = "auto", "Maximum number of bounces; `auto` = unbounded (a safety cap of 1024 ends paths trapped between mirrors).";
     "seed": u64 = "0", "Random seed.";
     "threads": usize = "0", "Worker threads; 0 = all cores (images are bit-identical for any count).";
@@ -149,7 +149,7 @@ impl Default for RenderConfig {
             spp: 16,
             sampler: "halton".into(),
             accel: "bvh8".into(),
-            rr: "throughput".into(),
+            rr: crate::rr::AUTO.into(),
             max_depth: None,
             seed: 0,
             threads: 0,

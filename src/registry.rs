@@ -71,7 +71,7 @@ pub fn make_integrator_allowing(
     quiet: bool,
     allowed: &dyn Fn(&str) -> bool,
 ) -> Result<(Box<dyn Integrator>, Vec<String>)> {
-    let rr = make_rr(&cfg.rr)?;
+    let rr = crate::rr::make_for(&cfg.rr, &cfg.integrator)?;
     let max_depth = cfg.depth_limit();
     if rr.never_terminates() && cfg.max_depth.is_none() {
         bail!("rr `off` never ends a path: give a finite max_depth (--max-depth N)");
@@ -312,7 +312,7 @@ mod tests {
             assert_eq!(make_accel(n, &[]).unwrap().name(), *n);
         }
         assert!(make_accel("kdtree", &[]).is_err());
-        for spec in ["off", "fixed", "fixed:0.5", "albedo", "throughput", "throughput:5"] {
+        for spec in ["off", "fixed", "fixed:0.5", "albedo", "throughput", "throughput:5", "auto"] {
             assert!(make_rr(spec).is_ok(), "{spec}");
         }
         for spec in ["fixed:2", "fixed:x", "throughput:-1", "nope", "off:3"] {

@@ -10,6 +10,9 @@ kept: pass the same --ref path again to reuse it). Prints per run and in total
 
 so a value above 1 means photonlab reaches a given error sooner. The relMSE is the one
 `photonlab diff` prints: mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01).
+Each run also reports both processes' CPU time (user + system, all threads) and the
+efficiency with CPU seconds in place of wall seconds, which load on a shared machine
+disturbs less. Both engines use a fixed seed, so repeated runs differ in time only.
 
     python3 tools/mitsuba_speed.py SCENE.toml --spp 256 --ref-spp 8192 --ref /tmp/ref.exr \
         [--runs 3] [--photonlab target/release/photonlab] [--variant llvm_ad_rgb] \
@@ -21,6 +24,7 @@ Set DRJIT_LIBLLVM_PATH when Dr.Jit does not find libLLVM by itself.
 """
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -46,12 +50,15 @@ def relmse(img, ref):
 
 
 def timed(cmd):
+    """Wall seconds and CPU seconds (user + system of the process and its threads)."""
+    ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     dt = time.perf_counter() - t0
+    ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed ({r.returncode}):\n{r.stderr}")
-    return dt
+    return dt, (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
 
 
 def mitsuba_cmd(a, spp, out):
@@ -109,26 +116,28 @@ def main():
     for run in range(a.runs):
         # Alternate which engine goes first, so a load change hits both alike.
         order = ["photonlab", "mitsuba"] if run % 2 == 0 else ["mitsuba", "photonlab"]
-        t = {}
+        t, c = {}, {}
         for who in order:
-            t[who] = timed(pl if who == "photonlab" else mitsuba_cmd(a, a.spp, mi_out))
+            t[who], c[who] = timed(pl if who == "photonlab" else mitsuba_cmd(a, a.spp, mi_out))
         e_pl, e_mi = relmse(read_exr(pl_out), ref), relmse(read_exr(mi_out), ref)
         eff = (e_mi * t["mitsuba"]) / (e_pl * t["photonlab"])
-        rows.append((t["photonlab"], e_pl, t["mitsuba"], e_mi, eff))
+        eff_cpu = (e_mi * c["mitsuba"]) / (e_pl * c["photonlab"])
+        rows.append((t["photonlab"], e_pl, t["mitsuba"], e_mi, eff, c["photonlab"], c["mitsuba"], eff_cpu))
         print(
-            f"run {run + 1}: photonlab {t['photonlab']:.2f} s relMSE {e_pl:.3e} | "
-            f"mitsuba {t['mitsuba']:.2f} s relMSE {e_mi:.3e} | efficiency {eff:.2f}x",
+            f"run {run + 1}: photonlab {t['photonlab']:.2f} s (CPU {c['photonlab']:.2f} s) relMSE {e_pl:.3e} | "
+            f"mitsuba {t['mitsuba']:.2f} s (CPU {c['mitsuba']:.2f} s) relMSE {e_mi:.3e} | efficiency {eff:.2f}x (CPU {eff_cpu:.2f}x)",
             flush=True,
         )
     if not rows:
         return
-    tp, ep, tm, em = (sum(r[i] for r in rows) for i in range(4))
+    tp, ep, tm, em, _, cp, cm, _ = (sum(r[i] for r in rows) for i in range(8))
     n = len(rows)
     print(
-        f"total ({n} runs): photonlab {tp / n:.2f} s, relMSE {ep / n:.3e}; mitsuba {tm / n:.2f} s, relMSE {em / n:.3e}; "
-        f"efficiency {(em * tm) / (ep * tp):.2f}x (per run {min(r[4] for r in rows):.2f}-{max(r[4] for r in rows):.2f}x)"
+        f"total ({n} runs): photonlab {tp / n:.2f} s (CPU {cp / n:.2f} s), relMSE {ep / n:.3e}; "
+        f"mitsuba {tm / n:.2f} s (CPU {cm / n:.2f} s), relMSE {em / n:.3e}; "
+        f"efficiency {(em * tm) / (ep * tp):.2f}x (per run {min(r[4] for r in rows):.2f}-{max(r[4] for r in rows):.2f}x), "
+        f"by CPU time {(em * cm) / (ep * cp):.2f}x (per run {min(r[7] for r in rows):.2f}-{max(r[7] for r in rows):.2f}x)"
     )
-
 
 if __name__ == "__main__":
     main()

@@ -1,6 +1,11 @@
 //! Russian-roulette policies (plug-ins chosen by name: `off`, `fixed`, `albedo`,
 //! `throughput`), shared by the path tracer and the photon tracer.
 //!
+//! The default, `auto`, depends on the integrator ([`make_for`]): `path` starts
+//! `throughput` roulette at bounce [`Throughput::PATH_MIN_DEPTH`] (5, as Mitsuba 3 does;
+//! the study in docs/rendering.md), every other integrator at
+//! [`Throughput::DEFAULT_MIN_DEPTH`] (3).
+//!
 //! A policy only says how likely a path is to survive a bounce; the caller draws the
 //! uniform number from its sampler and divides survivors by the probability, which
 //! keeps every estimator unbiased.
@@ -64,8 +69,29 @@ pub(crate) fn clamp01(q: f32) -> f32 {
 
 /// Russian-roulette policy names.
 pub const NAMES: &[&str] = &["off", "fixed", "albedo", "throughput"];
-/// Builds a Russian-roulette policy from `NAME[:PARAM]`.
+
+/// The default policy's spec: `throughput` with a minimum depth that depends on the
+/// integrator (see [`make_for`]).
+pub const AUTO: &str = "auto";
+
+/// Builds the policy `spec` for `integrator`: [`AUTO`] is `throughput` from bounce
+/// [`Throughput::PATH_MIN_DEPTH`] for `path` and from [`Throughput::DEFAULT_MIN_DEPTH`]
+/// for every other integrator (their images stay those of the earlier default);
+/// anything else as [`make`].
+pub fn make_for(spec: &str, integrator: &str) -> Result<Box<dyn RussianRoulette>> {
+    if spec == AUTO {
+        let d = if integrator == "path" { Throughput::PATH_MIN_DEPTH } else { Throughput::DEFAULT_MIN_DEPTH };
+        return Ok(Box::new(Throughput::new(d)));
+    }
+    make(spec)
+}
+
+/// Builds a Russian-roulette policy from `NAME[:PARAM]` ([`AUTO`]: `throughput` from
+/// bounce [`Throughput::DEFAULT_MIN_DEPTH`], what it means for every integrator but `path`).
 pub fn make(spec: &str) -> Result<Box<dyn RussianRoulette>> {
+    if spec == AUTO {
+        return make_for(spec, "");
+    }
     let s = crate::config::StrategySpec::parse(spec);
     let param_f = |default: f32| -> Result<f32> {
         match &s.param {
@@ -119,5 +145,25 @@ mod tests {
             s += roulette(&p, &ctx, (i as f32 + 0.5) / 1000.0).unwrap_or(0.0);
         }
         assert!((s / 1000.0 - 1.0).abs() < 1e-6);
+    }
+
+    /// `auto` starts roulette at bounce 5 for `path` only; other integrators keep 3.
+    #[test]
+    fn auto_depends_on_the_integrator() {
+        let q = |p: &dyn RussianRoulette, depth| {
+            p.survival_probability(&RrContext { depth, throughput: Color::splat(0.25), albedo: Color::ONE })
+        };
+        let path = make_for(AUTO, "path").unwrap();
+        assert_eq!(path.name(), "throughput");
+        assert_eq!((q(path.as_ref(), 4), q(path.as_ref(), 5)), (1.0, 0.25));
+        for other in ["photon", "sppm", "ppm", "bdpt", "vcm", ""] {
+            let p = make_for(AUTO, other).unwrap();
+            assert_eq!((q(p.as_ref(), 2), q(p.as_ref(), 3)), (1.0, 0.25), "{other}");
+        }
+        let p = make(AUTO).unwrap();
+        assert_eq!((q(p.as_ref(), 2), q(p.as_ref(), 3)), (1.0, 0.25));
+        // An explicit policy is taken as written, also for `path`.
+        let p = make_for("throughput", "path").unwrap();
+        assert_eq!(q(p.as_ref(), 3), 0.25);
     }
 }

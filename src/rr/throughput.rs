@@ -1,5 +1,6 @@
 //! `throughput:d`: after `d` bounces (default 3) survive with
-//! min(1, max channel of the path throughput), as pbrt does.
+//! min(1, max channel of the path throughput), as pbrt does. The `auto` default of
+//! `path` is `throughput:5` (Mitsuba 3's `rr_depth`).
 
 use super::{RrContext, RussianRoulette, clamp01};
 use crate::math::max_component;
@@ -12,6 +13,8 @@ pub struct Throughput {
 impl Throughput {
     /// Default minimum depth.
     pub const DEFAULT_MIN_DEPTH: u32 = 3;
+    /// Minimum depth of `path`'s default (`rr = "auto"`).
+    pub const PATH_MIN_DEPTH: u32 = 5;
     /// New policy.
     pub fn new(min_depth: u32) -> Self {
         Throughput { min_depth }
