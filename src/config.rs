@@ -149,7 +149,7 @@ impl Default for RenderConfig {
             spp: 16,
             sampler: "halton".into(),
             accel: "bvh8".into(),
-            rr: crate::rr::AUTO.into(),
+            rr: "auto".into(), // rr::AUTO (config must not import rr: no module cycle)
             max_depth: None,
             seed: 0,
             threads: 0,
