@@ -107,15 +107,32 @@ fn vcm_with_fewer_light_subpaths_and_pool_draws_agrees_with_path() {
     check("vcm bpt pool cornell", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
 }
 
+/// Merging at every non-delta camera vertex (`vcm_merge = "all"`, SmallVCM's) on the
+/// glass box, and at the first one only (`"first"`, the default, its MIS weights
+/// counting merging only there; `vcm_agrees_with_path` runs it on the glass box) on the
+/// diffuse box, stay consistent with `path`.
+#[test]
+fn vcm_merging_at_the_first_or_every_vertex_agrees_with_path() {
+    let first = |c: RenderConfig| c.with("vcm_merge", "first").with("passes", 128);
+    let all = |c: RenderConfig| c.with("vcm_merge", "all").with("passes", 128);
+    let reference = render("cornell-glass", cfg("path", 32, 512, 31));
+    let img = render("cornell-glass", all(RenderConfig { seed: 38, ..cfg("vcm", 32, 1, 0) }));
+    check("vcm all cornell-glass", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+    let reference = render("cornell", cfg("path", 32, 512, 34));
+    let img = render("cornell", first(RenderConfig { seed: 37, ..cfg("vcm", 32, 1, 0) }));
+    check("vcm first cornell", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
+}
+
 /// Same seed ⇒ same bits for 1 and 2 threads (the light-tracing splats included).
 #[test]
 fn images_are_bit_identical_for_any_thread_count() {
-    let pool = Some((4u32, 0.3f32, 2u32));
-    for (integrator, extra) in [("bdpt", None), ("vcm", Some((4u32, 1.0f32, 0u32))), ("vcm", pool)] {
+    let pool = Some((4u32, 0.3f32, 2u32, "all"));
+    let first = Some((4u32, 0.5f32, 1u32, "first"));
+    for (integrator, extra) in [("bdpt", None), ("vcm", Some((4u32, 1.0f32, 0u32, "all"))), ("vcm", pool), ("vcm", first)] {
         let run = |threads| {
             let c = RenderConfig { threads, ..cfg(integrator, 40, 4, 5) };
-            let c = if let Some((p, f, m)) = extra {
-                c.with("passes", p as i64).with("vcm_light_paths", f as f64).with("vcm_connect_draws", m as i64)
+            let c = if let Some((p, f, m, merge)) = extra {
+                c.with("passes", p as i64).with("vcm_light_paths", f as f64).with("vcm_connect_draws", m as i64).with("vcm_merge", merge)
             } else {
                 c
             };
@@ -180,6 +197,7 @@ fn bad_settings_are_named() {
     assert!(err(cfg("bdpt", 8, 1, 0).with("vcm_mode", "lt")).contains("vcm_mode"));
     assert!(err(cfg("vcm", 8, 1, 0).with("vcm_light_paths", 0.0)).contains("vcm_light_paths"));
     assert!(err(cfg("vcm", 8, 1, 0).with("vcm_connect_draws", 1000)).contains("vcm_connect_draws"));
+    assert!(err(cfg("vcm", 8, 1, 0).with("vcm_merge", "second")).contains("vcm_merge"));
 }
 
 /// An open scene lit only by a constant environment (the Cornell box, ceiling light

@@ -157,7 +157,7 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
                     }
                 }
             }
-            if let (true, Some(m)) = (mode.merge, merge) {
+            if let (true, true, Some(m)) = (mode.merge, partials.merges, merge) {
                 let c = beta * merge_at(ctx, bsdf, &it, wo, &partials, len, m) * ctx.vm_norm;
                 l += c;
                 rec.add(super::eye::MERGE, len + 1, 1.0, c);

@@ -69,12 +69,16 @@ pub struct Factors {
     pub lt_count: f32,
     /// mis(`conn_count`).
     pub conn: f32,
+    /// Merging at every non-delta camera vertex (`vcm_merge = "all"`); false: only at
+    /// the first one (`"first"`, see [`Partials::merges`]).
+    pub merge_all: bool,
 }
 
 impl Factors {
     /// Factors for merging radius `r` (ignored unless `merge`), `light_paths` light
-    /// subpaths per pass and inner connections counting `conn_count` per camera vertex.
-    pub fn new(h: Heuristic, connect: bool, merge: bool, r: f32, light_paths: f32, conn_count: f32) -> Self {
+    /// subpaths per pass and inner connections counting `conn_count` per camera vertex;
+    /// merging at every non-delta camera vertex (`merge_all`) or at the first only.
+    pub fn new(h: Heuristic, connect: bool, merge: bool, merge_all: bool, r: f32, light_paths: f32, conn_count: f32) -> Self {
         let eta = std::f32::consts::PI * r * r * light_paths / conn_count;
         Factors {
             h,
@@ -83,6 +87,7 @@ impl Factors {
             light_paths,
             lt_count: light_paths / conn_count,
             conn: h.mis(conn_count),
+            merge_all,
         }
     }
 }
@@ -96,6 +101,11 @@ pub struct Partials {
     pub dvc: f32,
     /// dVM: merging techniques further along.
     pub dvm: f32,
+    /// Whether the merging technique exists at the current vertex (when it is
+    /// non-delta and, on a light subpath, a non-delta camera vertex lies beyond it).
+    /// Always with `vcm_merge = "all"`; with `"first"` only on a camera subpath whose
+    /// earlier vertices are all delta (see [`Partials::scatter`]).
+    pub merges: bool,
 }
 
 impl Partials {
@@ -105,12 +115,12 @@ impl Partials {
         // Both terms stand for techniques counted 1 (s = 1 and s = 0), not `conn_count`.
         let dvcm = f.h.mis(direct_pdf_a / emission_pdf_w) / f.conn;
         let dvc = if delta { 0.0 } else { f.h.mis(if finite { cos } else { 1.0 } / emission_pdf_w) / f.conn };
-        Partials { dvcm, dvc, dvm: dvc * f.vc_weight }
+        Partials { dvcm, dvc, dvm: dvc * f.vc_weight, merges: f.merge_all }
     }
 
     /// A camera subpath leaving the eye with direction density `camera_pdf_w`.
     pub fn camera_start(f: &Factors, camera_pdf_w: f32) -> Self {
-        Partials { dvcm: f.h.mis(f.lt_count / camera_pdf_w), dvc: 0.0, dvm: 0.0 }
+        Partials { dvcm: f.h.mis(f.lt_count / camera_pdf_w), dvc: 0.0, dvm: 0.0, merges: true }
     }
 
     /// Completes the update on arriving at a vertex at squared distance `dist2`
@@ -130,6 +140,20 @@ impl Partials {
     /// Update for scattering from the last vertex (eqs. 34–36; specular 53–55): the
     /// sampled direction's density `pdf_dir`, the reverse density `pdf_rev`, geometric
     /// cosine `cos_out` of the new direction. A delta lobe's `pdf_dir` = `pdf_rev`.
+    ///
+    /// The terms of merging at the scattering vertex (`vm_weight` in dVC, 1 in dVM)
+    /// enter only where that technique exists ([`Partials::merges`]). With merging at
+    /// the first non-delta camera vertex only (`vcm_merge = "first"`), a full path
+    /// x₀ … x_k (x_k the eye) has one merging technique, at the first non-delta vertex
+    /// seen from the eye, x_f (x_{f+1} … x_{k−1} delta). A light subpath's partials at
+    /// y_s serve techniques whose camera side starts with a non-delta vertex (the
+    /// connections; light tracing adds its own merge at y_s in [`weight_camera`]),
+    /// so no merging at y_j, j ≤ s, lies on their paths: the light subpath carries no
+    /// merging terms. A camera subpath adds the merge at its first non-delta vertex
+    /// when it scatters there, then none: `merges` becomes `merge_all` after the
+    /// first non-delta scattering (a delta one keeps it). Since dVM = vc_weight · dVC
+    /// holds through the recursion (vm_weight · vc_weight = 1), the merge terms drop
+    /// from both alike.
     #[inline]
     pub fn scatter(&mut self, f: &Factors, cos_out: f32, pdf_dir: f32, pdf_rev: f32, specular: bool) {
         let h = f.h;
@@ -140,10 +164,18 @@ impl Partials {
         } else {
             let g = h.mis(cos_out.abs() / pdf_dir);
             let (dvcm, dvc, dvm) = (self.dvcm, self.dvc, self.dvm);
-            self.dvc = g * (dvc * h.mis(pdf_rev) + dvcm + f.vm_weight);
-            self.dvm = g * (dvm * h.mis(pdf_rev) + dvcm * f.vc_weight + 1.0);
+            let (vm, one) = if self.merges { (f.vm_weight, 1.0) } else { (0.0, 0.0) };
+            self.dvc = g * (dvc * h.mis(pdf_rev) + dvcm + vm);
+            self.dvm = g * (dvm * h.mis(pdf_rev) + dvcm * f.vc_weight + one);
             self.dvcm = h.mis(1.0 / pdf_dir);
+            self.merges = f.merge_all;
         }
+    }
+
+    /// `vm_weight` where merging exists at the current vertex, else 0.
+    #[inline]
+    fn vm(&self, f: &Factors) -> f32 {
+        if self.merges { f.vm_weight } else { 0.0 }
     }
 }
 
@@ -176,15 +208,15 @@ pub fn weight_direct(
     let h = f.h;
     let w_light = if delta { 0.0 } else { h.mis(bsdf_dir / (pick * direct_pdf_w)) };
     // The camera side's techniques are in connection units; this one counts 1.
-    let w_camera = f.conn
-        * h.mis(emission_pdf_w * cos_geo.abs() / (direct_pdf_w * cos_at_light))
-        * (f.vm_weight + cam.dvcm + cam.dvc * h.mis(bsdf_rev));
+    let w_camera =
+        f.conn * h.mis(emission_pdf_w * cos_geo.abs() / (direct_pdf_w * cos_at_light)) * (cam.vm(f) + cam.dvcm + cam.dvc * h.mis(bsdf_rev));
     1.0 / (w_light + 1.0 + w_camera)
 }
 
 /// Weight of light tracing (t = 1, eq. 46): `camera_pdf_a` is the area density of the
 /// light vertex under camera sampling, `bsdf_rev` the light vertex's density towards
-/// its predecessor given the eye direction.
+/// its predecessor given the eye direction. The light vertex is the first camera
+/// vertex of this path, so merging exists there in either `vcm_merge` mode.
 #[inline]
 pub fn weight_camera(f: &Factors, light: &Partials, camera_pdf_a: f32, bsdf_rev: f32) -> f32 {
     let w_light = f.h.mis(camera_pdf_a / f.lt_count) * (f.vm_weight + light.dvcm + light.dvc * f.h.mis(bsdf_rev));
@@ -205,8 +237,8 @@ pub fn weight_connect(
     cam_rev: f32,
 ) -> f32 {
     let h = f.h;
-    let w_light = h.mis(cam_to_light_a) * (f.vm_weight + light.dvcm + light.dvc * h.mis(light_rev));
-    let w_camera = h.mis(light_to_cam_a) * (f.vm_weight + cam.dvcm + cam.dvc * h.mis(cam_rev));
+    let w_light = h.mis(cam_to_light_a) * (light.vm(f) + light.dvcm + light.dvc * h.mis(light_rev));
+    let w_camera = h.mis(light_to_cam_a) * (cam.vm(f) + cam.dvcm + cam.dvc * h.mis(cam_rev));
     1.0 / (w_light + 1.0 + w_camera)
 }
 

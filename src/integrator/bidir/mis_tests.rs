@@ -2,7 +2,9 @@
 //! densities, over many random paths: for every technique that can sample a path
 //! (connections s = 0 … k, merges at every inner vertex), the weight from the
 //! partials equals p_i^β / Σ p_j^β, and the weights sum to one. A planted bug (the
-//! two reverse densities of an inner connection swapped) must break the sum.
+//! two reverse densities of an inner connection swapped) must break the sum. With
+//! merging at the first non-delta camera vertex only (`vcm_merge = "first"`; the
+//! vertices here are all non-delta) the one merge is at x_{k−1}.
 
 use super::mis::{Factors, Heuristic, Partials, w_to_a, weight_camera, weight_connect, weight_direct, weight_hit, weight_merge};
 use crate::camera::Camera;
@@ -99,10 +101,10 @@ impl Path {
 }
 
 /// Brute force: every technique's effective density (sample counts included), in the
-/// order s = 0 … k, then merges at j = 1 … k − 1.
+/// order s = 0 … k, then merges at j = 1 … k − 1 (`first`: at k − 1 only).
 /// Inner connections (2 ≤ s ≤ k − 1) count `conn` samples, light tracing `n_light`,
 /// emitter hits and direct sampling 1.
-fn brute(p: &Path, merge: bool, eta: f32, n_light: f32, conn: f32) -> Vec<f32> {
+fn brute(p: &Path, merge: bool, first: bool, eta: f32, n_light: f32, conn: f32) -> Vec<f32> {
     let k = p.k();
     let mut raw = Vec::new();
     for s in 0..=k {
@@ -128,7 +130,7 @@ fn brute(p: &Path, merge: bool, eta: f32, n_light: f32, conn: f32) -> Vec<f32> {
         })
         .collect();
     if merge {
-        q.extend((1..k).map(|j| eta * raw[j] * p.pl(j)));
+        q.extend((if first { k - 1 } else { 1 }..k).map(|j| eta * raw[j] * p.pl(j)));
     }
     q
 }
@@ -160,6 +162,7 @@ fn camera_partials(p: &Path, f: &Factors, j: usize) -> Partials {
 
 /// The weights from the partials, same order as [`brute`].
 fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
+    // Merging exists where the partials say so (`vcm_merge = "first"`: at x_{k−1}).
     let k = p.k();
     let mut w = Vec::new();
     let c0 = camera_partials(p, f, 0);
@@ -197,7 +200,9 @@ fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
     if merge {
         for j in 1..k {
             let (l, c) = (light_partials(p, f, j), camera_partials(p, f, j));
-            w.push(weight_merge(f, &l, &c, p.pdf(j, j + 1, j - 1), p.pdf(j, j - 1, j + 1)));
+            if c.merges {
+                w.push(weight_merge(f, &l, &c, p.pdf(j, j + 1, j - 1), p.pdf(j, j - 1, j + 1)));
+            }
         }
     }
     w
@@ -207,16 +212,17 @@ fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
 /// |Σ weights − 1|, share of paths whose sum is off by more than 1 %).
 /// `n_light` light subpaths per pass, inner connections counting `conn` (1: each camera
 /// vertex joined to its own light subpath).
-fn check(h: Heuristic, merge: bool, plant: bool, n_light: f32, conn: f32) -> (f32, f32, f32) {
+/// `first`: merging at the first non-delta camera vertex only.
+fn check(h: Heuristic, merge: bool, first: bool, plant: bool, n_light: f32, conn: f32) -> (f32, f32, f32) {
     let mut rng = Rng(0xB1D1 + merge as u64);
     let r = 0.01;
-    let f = Factors::new(h, true, merge, r, n_light, conn);
+    let f = Factors::new(h, true, merge, !first, r, n_light, conn);
     let eta = PI * r * r * n_light;
     let (mut worst_w, mut worst_sum, mut off) = (0.0f32, 0.0f32, 0usize);
     let trials = 2000;
     for t in 0..trials {
         let p = random_path(&mut rng, 3 + t % 5);
-        let q = brute(&p, merge, eta, n_light, conn);
+        let q = brute(&p, merge, first, eta, n_light, conn);
         let qb: Vec<f64> = q.iter().map(|&v| (h.mis(1.0) as f64) * (v as f64).powi(if h == Heuristic::Power { 2 } else { 1 })).collect();
         let total: f64 = qb.iter().sum();
         let w = recursive(&p, &f, merge, plant);
@@ -239,12 +245,12 @@ const COUNTS: [(f32, f32); 4] = [(64.0 * 48.0, 1.0), (64.0 * 12.0, 1.0), (64.0 *
 #[test]
 fn recursive_weights_equal_the_heuristic_and_sum_to_one() {
     for h in [Heuristic::Balance, Heuristic::Power] {
-        for merge in [false, true] {
+        for (merge, first) in [(false, false), (true, false), (true, true)] {
             for (n_light, conn) in COUNTS {
-                let (w, s, _) = check(h, merge, false, n_light, conn);
+                let (w, s, _) = check(h, merge, first, false, n_light, conn);
                 assert!(
                     w < 2e-3 && s < 2e-3,
-                    "{h:?} merge {merge} {n_light} light paths, connections ×{conn}: worst weight error {w}, worst sum error {s}"
+                    "{h:?} merge {merge} (first only: {first}) {n_light} light paths, connections ×{conn}: worst weight error {w}, worst sum error {s}"
                 );
             }
         }
@@ -254,9 +260,14 @@ fn recursive_weights_equal_the_heuristic_and_sum_to_one() {
 #[test]
 fn planted_wrong_reverse_density_breaks_the_sum() {
     for h in [Heuristic::Balance, Heuristic::Power] {
-        for (n_light, conn) in COUNTS {
-            let (_, s, off) = check(h, true, true, n_light, conn);
-            assert!(s > 0.1 && off > 0.3, "{h:?}, connections ×{conn}: planted bug not caught (worst sum error {s}, {off} of paths off)");
+        for first in [false, true] {
+            for (n_light, conn) in COUNTS {
+                let (_, s, off) = check(h, true, first, true, n_light, conn);
+                assert!(
+                    s > 0.1 && off > 0.3,
+                    "{h:?}, first only {first}, connections ×{conn}: planted bug not caught (worst sum error {s}, {off} of paths off)"
+                );
+            }
         }
     }
 }

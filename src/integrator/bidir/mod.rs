@@ -56,6 +56,9 @@ pub struct Mode {
     /// Progressive photon mapping: merge at the first non-delta camera vertex only,
     /// unweighted.
     pub ppm: bool,
+    /// Merging (weighted) only at the first non-delta camera vertex (`vcm_merge =
+    /// "first"`) instead of at every one.
+    pub merge_first: bool,
 }
 
 impl Mode {
@@ -64,7 +67,7 @@ impl Mode {
 
     /// Parses a `vcm_mode`.
     pub fn parse(s: &str) -> anyhow::Result<Self> {
-        let m = |connect, merge, lt, ppm| Mode { connect, merge, lt, ppm };
+        let m = |connect, merge, lt, ppm| Mode { connect, merge, lt, ppm, merge_first: false };
         Ok(match s {
             "vcm" => m(true, true, false, false),
             "bpt" => m(true, false, false, false),
@@ -72,6 +75,19 @@ impl Mode {
             "lt" => m(false, false, true, false),
             _ => anyhow::bail!("unknown vcm_mode `{s}` (known: {})", Self::NAMES.join(", ")),
         })
+    }
+
+    /// `vcm_merge` names.
+    pub const MERGE_NAMES: &'static [&'static str] = &["all", "first"];
+
+    /// Sets where merging happens from a `vcm_merge` value.
+    pub fn with_merge(self, s: &str) -> anyhow::Result<Self> {
+        let merge_first = match s {
+            "all" => false,
+            "first" => true,
+            _ => anyhow::bail!("unknown vcm_merge `{s}` (known: {})", Self::MERGE_NAMES.join(", ")),
+        };
+        Ok(Mode { merge_first, ..self })
     }
 }
 
@@ -123,7 +139,7 @@ impl<'a> Ctx<'a> {
             Some((m, lbar)) if m > 0 && lbar > 0.0 => (m, m as f32 / lbar),
             _ => (0, 1.0),
         };
-        let f = Factors::new(h, mode.connect, mode.merge, radius, n, conn_count);
+        let f = Factors::new(h, mode.connect, mode.merge, !mode.merge_first, radius, n, conn_count);
         let vm_norm = 1.0 / (std::f32::consts::PI * radius * radius * n);
         Ctx { world, f, mode, max_len: max_depth.saturating_add(1), rr, radius, vm_norm, light_paths, pool_draws }
     }

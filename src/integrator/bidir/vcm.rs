@@ -5,7 +5,9 @@
 //! is the mean of the passes' estimates. A pass traces `vcm_light_paths` × W·H light
 //! subpaths (½ by default) and joins each camera vertex to `vcm_connect_draws` vertices
 //! drawn from all of the pass's light vertices (1 by default; 0: every vertex of its own
-//! light subpath — with `vcm_light_paths = 1` SmallVCM's pass). `vcm_mode` restricts
+//! light subpath), and merges at the first non-delta camera vertex only (`vcm_merge =
+//! "first"`, the MIS weights counting merging only there; `"all"`: at every non-delta
+//! one — with `vcm_light_paths = 1`, `vcm_connect_draws = 0` SmallVCM's pass). `vcm_mode` restricts
 //! the techniques for ablations (SmallVCM's algorithms): `bpt` connections only, `ppm`
 //! merging at the first non-delta camera vertex only (no MIS), `lt` light tracing only.
 
@@ -39,6 +41,8 @@ crate::params! {
         vcm_light_paths: f32 = "0.5",
         /// Light vertices each camera vertex is joined to, drawn (stratified) from all light vertices of the pass (Davidovič et al. 2014's light vertex cache); 0 = every vertex of its own light subpath (SmallVCM).
         vcm_connect_draws: u32 = "1",
+        /// Camera vertices merged with the pass's light vertices: the `first` non-delta one only (the MIS weights count merging only there) or `all` non-delta ones (SmallVCM).
+        vcm_merge: String = "first",
     }
 }
 
@@ -86,7 +90,7 @@ impl VcmIntegrator {
         Ok(VcmIntegrator {
             cfg: cfg.clone(),
             h: Heuristic::parse(&b.bdpt_mis)?,
-            mode: Mode::parse(&p.vcm_mode)?,
+            mode: Mode::parse(&p.vcm_mode)?.with_merge(&p.vcm_merge)?,
             radius: p.vcm_radius,
             light_fraction: p.vcm_light_paths,
             draws: p.vcm_connect_draws,
