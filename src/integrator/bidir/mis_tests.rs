@@ -3,8 +3,11 @@
 //! (connections s = 0 … k, merges at every inner vertex), the weight from the
 //! partials equals p_i^β / Σ p_j^β, and the weights sum to one. A planted bug (the
 //! two reverse densities of an inner connection swapped) must break the sum. With
-//! merging at the first non-delta camera vertex only (`vcm_merge = "first"`; the
-//! vertices here are all non-delta) the one merge is at x_{k−1}.
+//! merging at the first non-delta camera vertex only (`vcm_merge = "first"`) the one
+//! merge is at the last non-delta vertex x_j (x_{j+1} … x_{k−1} delta). Paths may have
+//! delta (specular) inner vertices: no technique connects or merges there, and each
+//! technique samples through them with the same delta factor, taken as 1 in both
+//! directions (the partials' specular update).
 
 use super::mis::{Factors, Heuristic, Partials, w_to_a, weight_camera, weight_connect, weight_direct, weight_hit, weight_merge};
 use crate::camera::Camera;
@@ -29,12 +32,15 @@ struct Path {
     x: Vec<Vec3>,
     sp: Vec<ShadingPoint>,
     bsdf: Vec<Bsdf>,
+    /// Delta (specular) vertices (never x0).
+    delta: Vec<bool>,
     cam: Camera,
     area: f32,
     pick: f32,
 }
 
-fn random_path(rng: &mut Rng, k: usize) -> Path {
+/// `specular`: share of the inner vertices x1 … x_{k−1} that are delta.
+fn random_path(rng: &mut Rng, k: usize, specular: f32) -> Path {
     let cam = Camera::new(Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO, Vec3::Y, 60.0, 64, 48).unwrap();
     let mut x: Vec<Vec3> = (0..k).map(|_| rng.v()).collect();
     x.push(cam.eye);
@@ -57,7 +63,8 @@ fn random_path(rng: &mut Rng, k: usize) -> Path {
             Bsdf::Glossy(Glossy { kd: Color::splat(0.3), ks: Color::splat(0.5), exponent: 5.0 + 40.0 * rng.f() })
         });
     }
-    Path { x, sp, bsdf, cam, area: 0.2 + rng.f(), pick: 0.3 + 0.7 * rng.f() }
+    let delta = (0..k).map(|i| i > 0 && specular > 0.0 && rng.f() < specular).collect();
+    Path { x, sp, bsdf, delta, cam, area: 0.2 + rng.f(), pick: 0.3 + 0.7 * rng.f() }
 }
 
 impl Path {
@@ -75,8 +82,13 @@ impl Path {
         self.dir(i, j).dot(self.sp[i].ng).abs()
     }
     /// BSDF density at i of sampling the direction to `to` given the one to `from`.
+    /// (The delta factor of a delta vertex is 1.)
     fn pdf(&self, i: usize, from: usize, to: usize) -> f32 {
-        self.bsdf[i].pdf(&self.sp[i], self.dir(i, from), self.dir(i, to))
+        if self.delta[i] { 1.0 } else { self.bsdf[i].pdf(&self.sp[i], self.dir(i, from), self.dir(i, to)) }
+    }
+    /// Whether merging at x_j exists (`first`: only at the last non-delta vertex).
+    fn merges_at(&self, j: usize, first: bool) -> bool {
+        !self.delta[j] && (!first || (j + 1..self.k()).all(|i| self.delta[i]))
     }
     fn emission_pdf_w(&self) -> f32 {
         self.pick / self.area * self.cos(0, 1) / PI
@@ -100,8 +112,8 @@ impl Path {
     }
 }
 
-/// Brute force: every technique's effective density (sample counts included), in the
-/// order s = 0 … k, then merges at j = 1 … k − 1 (`first`: at k − 1 only).
+/// Brute force: every technique's effective density (sample counts included; 0 where
+/// the technique does not exist), in the order s = 0 … k, then merges at j = 1 … k − 1.
 /// Inner connections (2 ≤ s ≤ k − 1) count `conn` samples, light tracing `n_light`,
 /// emitter hits and direct sampling 1.
 fn brute(p: &Path, merge: bool, first: bool, eta: f32, n_light: f32, conn: f32) -> Vec<f32> {
@@ -119,6 +131,10 @@ fn brute(p: &Path, merge: bool, first: bool, eta: f32, n_light: f32, conn: f32) 
     }
     let mut q: Vec<f32> = (0..=k)
         .map(|s| {
+            // Connections (s ≥ 1) join x_{s−1} and x_s (the eye for s = k).
+            if s >= 1 && (p.delta[s - 1] || (s < k && p.delta[s])) {
+                return 0.0;
+            }
             raw[s]
                 * if s == k {
                     n_light
@@ -130,7 +146,7 @@ fn brute(p: &Path, merge: bool, first: bool, eta: f32, n_light: f32, conn: f32) 
         })
         .collect();
     if merge {
-        q.extend((if first { k - 1 } else { 1 }..k).map(|j| eta * raw[j] * p.pl(j)));
+        q.extend((1..k).map(|j| if p.merges_at(j, first) { eta * raw[j] * p.pl(j) } else { 0.0 }));
     }
     q
 }
@@ -140,7 +156,7 @@ fn light_partials(p: &Path, f: &Factors, i: usize) -> Partials {
     let mut l = Partials::light_start(f, p.pick / p.area, p.emission_pdf_w(), p.cos(0, 1), false, true);
     for v in 1..=i {
         if v > 1 {
-            l.scatter(f, p.cos(v - 1, v), p.pdf(v - 1, v - 2, v), p.pdf(v - 1, v, v - 2), false);
+            l.scatter(f, p.cos(v - 1, v), p.pdf(v - 1, v - 2, v), p.pdf(v - 1, v, v - 2), p.delta[v - 1]);
         }
         l.arrive(f.h, Some(p.d2(v - 1, v)), p.cos(v, v - 1));
     }
@@ -153,7 +169,7 @@ fn camera_partials(p: &Path, f: &Factors, j: usize) -> Partials {
     let mut c = Partials::camera_start(f, p.cam.pdf_dir(p.x[k - 1] - p.cam.eye));
     for v in (j..k).rev() {
         if v < k - 1 {
-            c.scatter(f, p.cos(v + 1, v), p.pdf(v + 1, v + 2, v), p.pdf(v + 1, v, v + 2), false);
+            c.scatter(f, p.cos(v + 1, v), p.pdf(v + 1, v + 2, v), p.pdf(v + 1, v, v + 2), p.delta[v + 1]);
         }
         c.arrive(f.h, Some(p.d2(v + 1, v)), p.cos(v, v + 1));
     }
@@ -162,7 +178,8 @@ fn camera_partials(p: &Path, f: &Factors, j: usize) -> Partials {
 
 /// The weights from the partials, same order as [`brute`].
 fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
-    // Merging exists where the partials say so (`vcm_merge = "first"`: at x_{k−1}).
+    // Merging exists at non-delta vertices where the partials say so (`vcm_merge =
+    // "first"`: at the last non-delta vertex); techniques that do not exist weigh 0.
     let k = p.k();
     let mut w = Vec::new();
     let c0 = camera_partials(p, f, 0);
@@ -171,19 +188,27 @@ fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
     let direct_pdf_w = p.d2(0, 1) / (p.cos(0, 1) * p.area);
     let emission_pdf_w = p.cos(0, 1) / (PI * p.area);
     let cam_next = 2;
-    w.push(weight_direct(
-        f,
-        &c1,
-        p.pick,
-        direct_pdf_w,
-        emission_pdf_w,
-        p.cos(0, 1),
-        false,
-        p.pdf(1, cam_next, 0),
-        p.pdf(1, 0, cam_next),
-        p.cos(1, 0),
-    ));
+    w.push(if p.delta[1] {
+        0.0
+    } else {
+        weight_direct(
+            f,
+            &c1,
+            p.pick,
+            direct_pdf_w,
+            emission_pdf_w,
+            p.cos(0, 1),
+            false,
+            p.pdf(1, cam_next, 0),
+            p.pdf(1, 0, cam_next),
+            p.cos(1, 0),
+        )
+    });
     for s in 2..k {
+        if p.delta[s - 1] || p.delta[s] {
+            w.push(0.0);
+            continue;
+        }
         let (l, c) = (light_partials(p, f, s - 1), camera_partials(p, f, s));
         let d2 = p.d2(s - 1, s);
         let cam_to_light_a = w_to_a(p.pdf(s, s + 1, s - 1), d2, p.cos(s - 1, s));
@@ -196,13 +221,11 @@ fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
     }
     let l = light_partials(p, f, k - 1);
     let camera_pdf_a = p.cam.pdf_dir(p.x[k - 1] - p.cam.eye) * p.cos(k - 1, k) / p.d2(k - 1, k);
-    w.push(weight_camera(f, &l, camera_pdf_a, p.pdf(k - 1, k, k - 2)));
+    w.push(if p.delta[k - 1] { 0.0 } else { weight_camera(f, &l, camera_pdf_a, p.pdf(k - 1, k, k - 2)) });
     if merge {
         for j in 1..k {
             let (l, c) = (light_partials(p, f, j), camera_partials(p, f, j));
-            if c.merges {
-                w.push(weight_merge(f, &l, &c, p.pdf(j, j + 1, j - 1), p.pdf(j, j - 1, j + 1)));
-            }
+            w.push(if c.merges && !p.delta[j] { weight_merge(f, &l, &c, p.pdf(j, j + 1, j - 1), p.pdf(j, j - 1, j + 1)) } else { 0.0 });
         }
     }
     w
@@ -213,7 +236,8 @@ fn recursive(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
 /// `n_light` light subpaths per pass, inner connections counting `conn` (1: each camera
 /// vertex joined to its own light subpath).
 /// `first`: merging at the first non-delta camera vertex only.
-fn check(h: Heuristic, merge: bool, first: bool, plant: bool, n_light: f32, conn: f32) -> (f32, f32, f32) {
+/// `specular`: share of delta inner vertices.
+fn check(h: Heuristic, merge: bool, first: bool, plant: bool, n_light: f32, conn: f32, specular: f32) -> (f32, f32, f32) {
     let mut rng = Rng(0xB1D1 + merge as u64);
     let r = 0.01;
     let f = Factors::new(h, true, merge, !first, r, n_light, conn);
@@ -221,7 +245,7 @@ fn check(h: Heuristic, merge: bool, first: bool, plant: bool, n_light: f32, conn
     let (mut worst_w, mut worst_sum, mut off) = (0.0f32, 0.0f32, 0usize);
     let trials = 2000;
     for t in 0..trials {
-        let p = random_path(&mut rng, 3 + t % 5);
+        let p = random_path(&mut rng, 3 + t % 5, specular);
         let q = brute(&p, merge, first, eta, n_light, conn);
         let qb: Vec<f64> = q.iter().map(|&v| (h.mis(1.0) as f64) * (v as f64).powi(if h == Heuristic::Power { 2 } else { 1 })).collect();
         let total: f64 = qb.iter().sum();
@@ -247,11 +271,14 @@ fn recursive_weights_equal_the_heuristic_and_sum_to_one() {
     for h in [Heuristic::Balance, Heuristic::Power] {
         for (merge, first) in [(false, false), (true, false), (true, true)] {
             for (n_light, conn) in COUNTS {
-                let (w, s, _) = check(h, merge, first, false, n_light, conn);
-                assert!(
-                    w < 2e-3 && s < 2e-3,
-                    "{h:?} merge {merge} (first only: {first}) {n_light} light paths, connections ×{conn}: worst weight error {w}, worst sum error {s}"
-                );
+                for specular in [0.0, 0.35] {
+                    let (w, s, _) = check(h, merge, first, false, n_light, conn, specular);
+                    assert!(
+                        w < 2e-3 && s < 2e-3,
+                        "{h:?} merge {merge} (first only: {first}) {n_light} light paths, connections ×{conn}, \
+                         specular share {specular}: worst weight error {w}, worst sum error {s}"
+                    );
+                }
             }
         }
     }
@@ -262,7 +289,7 @@ fn planted_wrong_reverse_density_breaks_the_sum() {
     for h in [Heuristic::Balance, Heuristic::Power] {
         for first in [false, true] {
             for (n_light, conn) in COUNTS {
-                let (_, s, off) = check(h, true, first, true, n_light, conn);
+                let (_, s, off) = check(h, true, first, true, n_light, conn, 0.0);
                 assert!(
                     s > 0.1 && off > 0.3,
                     "{h:?}, first only {first}, connections ×{conn}: planted bug not caught (worst sum error {s}, {off} of paths off)"
