@@ -1,7 +1,8 @@
 //! The camera (eye) subpath of one pixel sample and every technique that ends on it:
 //! emitters it hits (s = 0), direct light sampling (s = 1), connections to the
-//! vertices of its own light subpath (s ≥ 2, t ≥ 2) and merging with the light
-//! vertices of the whole pass near each vertex (SmallVCM's camera loop).
+//! vertices of its own light subpath or drawn from the pass's (s ≥ 2, t ≥ 2) and
+//! merging with the light vertices of the whole pass near its first non-delta vertex
+//! (or each one, `vcm_merge = "all"`; SmallVCM's camera loop).
 
 use super::Ctx;
 use super::grid::HashGrid;

@@ -10,8 +10,9 @@
 //! light subpath's vertices are joined to the eye (t = 1, splatted into the pixel
 //! they project to). `vcm` by default joins each camera vertex to one vertex drawn
 //! from all light vertices of the pass instead of to those of its own subpath
-//! (`vcm_connect_draws`), and merges it with all light vertices of the pass within a
-//! shrinking radius. One MIS weight covers all techniques ([`mis`], constant cost per
+//! (`vcm_connect_draws`), and merges its first non-delta vertex (every non-delta one
+//! with `vcm_merge = "all"`) with all light vertices of the pass within a shrinking
+//! radius. One MIS weight covers all techniques ([`mis`], constant cost per
 //! connection).
 //!
 //! Files: [`lights`] (emission and direct-sampling densities), [`subpath`] (light
