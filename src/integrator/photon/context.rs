@@ -83,6 +83,40 @@ pub struct GatherPoint<'a> {
     pub bsdf: &'a Bsdf,
     /// Key of the point's random numbers.
     pub key: ShadeKey,
+    /// The camera sample this point shades, when it is a camera path's first
+    /// non-specular point (its first-level gather may take its share of a pixel's
+    /// rays, [`PixelSplit`]); `None` at gather hits and cache entries.
+    pub pixel: Option<PixelSample>,
+}
+
+/// A camera sample: its pixel's key (the same for every sample of the pixel, and of
+/// the same specular branch) and its index in the pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelSample {
+    /// Key of the pixel's gather points (stream of the shared gather samplers).
+    pub key: ShadeKey,
+    /// Sample index within the pixel.
+    pub index: u64,
+}
+
+/// `gather_per = "pixel"`: the first-level gather rays counted per pixel. Camera
+/// sample i of the pixel traces the rays i·n … i·n + n − 1 of one point set per
+/// pixel (so the pixel's rays are stratified together), each weighted 1/n: every
+/// sample's gather stays an unbiased estimate of its own point's irradiance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelSplit {
+    /// Diffuse gather rays per camera sample (⌈gather_samples / spp⌉).
+    pub gather: u32,
+    /// Glossy-lobe rays per camera sample (⌈glossy_samples / spp⌉).
+    pub glossy: u32,
+}
+
+impl PixelSplit {
+    /// The split of `gather` and `glossy` rays per pixel over `spp` camera samples.
+    pub fn new(gather: u32, glossy: u32, spp: u32) -> Self {
+        let per = |n: u32| n.div_ceil(spp.max(1)).max(1);
+        PixelSplit { gather: per(gather), glossy: per(glossy) }
+    }
 }
 
 /// Photon maps plus everything the render pass shares between gather plug-ins.
@@ -107,6 +141,9 @@ pub struct PhotonContext {
     pub glossy_sampler: Box<dyn Sampler>,
     /// Rays sampled from the glossy lobe at glossy gathering points.
     pub glossy_samples: u32,
+    /// First-level rays counted per pixel (`gather_per = "pixel"`), or per camera
+    /// sample (`None`).
+    pub pixel_split: Option<PixelSplit>,
     /// Direct-light sampler (sample count = direct_samples).
     pub direct_sampler: Box<dyn Sampler>,
     /// Shadow rays per shading point.
@@ -118,7 +155,7 @@ impl PhotonContext {
     /// `direct_samples` shadow rays, lights chosen in proportion to power, the samples
     /// stratified by the direct sampler (its first dimension picks the light).
     pub fn direct_light(&self, at: &GatherPoint, stats: &mut TraversalStats) -> Color {
-        let GatherPoint { world, it, wo, bsdf, key } = *at;
+        let GatherPoint { world, it, wo, bsdf, key, .. } = *at;
         let key = key.child(0xD1);
         let n = self.direct_samples.max(1);
         let mut sum = Color::ZERO;
@@ -252,11 +289,25 @@ impl PhotonContext {
         let Some(sp) = self.follow_specular_path(world, ray, key, stats) else { return (Color::ZERO, f32::INFINITY) };
         let hb = &*world.bsdf_at(&sp.it);
         let l = if level + 1 < self.gather_counts.len() {
-            self.shade(&GatherPoint { world, it: &sp.it, wo: sp.wo, bsdf: hb, key }, level + 1, stats, false)
+            self.shade(&GatherPoint { world, it: &sp.it, wo: sp.wo, bsdf: hb, key, pixel: None }, level + 1, stats, false)
         } else {
             self.exitant_at_hit(world, &sp.it, sp.wo, hb, stats)
         };
         (l * sp.weight, sp.first_dist)
+    }
+
+    /// The rays a gather at `at` on `level` traces: (rays, sampler stream, index of
+    /// the first ray). At a camera sample's point with a per-pixel `split` (rays per
+    /// sample, [`PixelSplit`]), the sample's share of the pixel's point set (stream:
+    /// the pixel's key); otherwise `n` rays from the point's own key (`salt`ed when
+    /// given).
+    #[inline]
+    fn ray_set(at: &GatherPoint, level: usize, n: u32, split: Option<u32>, salt: Option<u64>) -> (u32, u64, u64) {
+        let stream = |k: ShadeKey| salt.map_or(k.0, |s| k.child(s).0);
+        match (split, at.pixel) {
+            (Some(m), Some(px)) if level == 0 => (m, stream(px.key), px.index * m as u64),
+            _ => (n, stream(at.key), 0),
+        }
     }
 
     /// Final gather of the irradiance at `it` with the rays of `level` (0 = first
@@ -265,13 +316,13 @@ impl PhotonContext {
     /// surface carry no light.
     pub fn final_gather(&self, at: &GatherPoint, level: usize, stats: &mut TraversalStats) -> GatherResult {
         let GatherPoint { world, it, wo, key, .. } = *at;
-        let n = self.gather_counts[level].max(1);
+        let (n, stream, first) = Self::ray_set(at, level, self.gather_counts[level].max(1), self.pixel_split.map(|p| p.gather), None);
         let s = &self.gather_samplers[level];
         let frame = Frame::new(facing_shading_normal(it, wo));
         let (mut irr, mut inv_d) = (Color::ZERO, 0.0f32);
         for j in 0..n {
             let mut u = [0.0f32; 2];
-            s.values_at(key.0, j as u64, 0, &mut u);
+            s.values_at(stream, first + j as u64, 0, &mut u);
             let wi = frame.to_world(cosine_hemisphere(u));
             if wi.dot(it.sp.ng) * wo.dot(it.sp.ng) <= 0.0 {
                 continue;
@@ -289,16 +340,16 @@ impl PhotonContext {
     /// from the glossy lobe alone, each shaded as a final-gather ray. Zero for
     /// surfaces without a glossy lobe.
     pub fn glossy_gather(&self, at: &GatherPoint, level: usize, stats: &mut TraversalStats) -> Color {
-        let GatherPoint { world, it, wo, bsdf, key } = *at;
+        let GatherPoint { world, it, wo, bsdf, key, .. } = *at;
         if !bsdf.has_glossy() {
             return Color::ZERO;
         }
-        let n = self.glossy_samples.max(1);
+        let (n, stream, first) = Self::ray_set(at, level, self.glossy_samples.max(1), self.pixel_split.map(|p| p.glossy), Some(0x6105));
         let key = key.child(0x6105);
         let mut sum = Color::ZERO;
         for j in 0..n {
             let mut u = [0.0f32; 2];
-            self.glossy_sampler.values_at(key.0, j as u64, 0, &mut u);
+            self.glossy_sampler.values_at(stream, first + j as u64, 0, &mut u);
             let Some((wi, w)) = bsdf.sample_glossy(&it.sp, wo, u) else { continue };
             let (l, _) = self.gather_ray(world, world.spawn(it, wi), level, key.child(j as u64 + 1), stats);
             sum += w * l;
@@ -345,4 +396,19 @@ pub fn pick_branch(br: &[(Vec3, Color)], u: f32) -> Option<(Vec3, Color)> {
         }
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PixelSplit;
+
+    #[test]
+    fn pixel_split_gives_each_sample_at_least_its_share() {
+        let split = |g, s, spp| PixelSplit::new(g, s, spp);
+        assert_eq!(split(64, 16, 16), PixelSplit { gather: 4, glossy: 1 });
+        assert_eq!(split(20, 12, 8), PixelSplit { gather: 3, glossy: 2 });
+        assert_eq!(split(4, 4, 16), PixelSplit { gather: 1, glossy: 1 });
+        assert_eq!(split(64, 16, 1), PixelSplit { gather: 64, glossy: 16 });
+        assert_eq!(split(64, 16, 0), PixelSplit { gather: 64, glossy: 16 });
+    }
 }

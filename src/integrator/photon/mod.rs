@@ -32,7 +32,7 @@ use crate::rr::RussianRoulette;
 use crate::sampler::Sampler;
 use crate::world::World;
 use anyhow::{Result, bail};
-use context::{GatherPoint, MAX_SPECULAR, PhotonContext, SPLIT_DEPTH, ShadeKey, pick_branch};
+use context::{GatherPoint, MAX_SPECULAR, PhotonContext, PixelSample, PixelSplit, SPLIT_DEPTH, ShadeKey, pick_branch};
 use gather::{Gather, GatherSpec};
 use glam::Vec3;
 use std::collections::BTreeMap;
@@ -230,7 +230,17 @@ impl PhotonIntegrator {
         self.ctx.as_ref()
     }
 
-    fn radiance(&self, ctx: &PhotonContext, world: &World, ray: &Ray, sdepth: u32, key: ShadeKey, stats: &mut TraversalStats) -> Color {
+    #[allow(clippy::too_many_arguments)]
+    fn radiance(
+        &self,
+        ctx: &PhotonContext,
+        world: &World,
+        ray: &Ray,
+        sdepth: u32,
+        key: ShadeKey,
+        pixel: PixelSample,
+        stats: &mut TraversalStats,
+    ) -> Color {
         let seen = matches!(self.output, Output::All | Output::Direct);
         // A camera ray or specular chain that leaves the scene sees the environment
         // (light reaching it from there after a diffuse or glossy bounce comes from
@@ -256,11 +266,12 @@ impl PhotonIntegrator {
             if sdepth < SPLIT_DEPTH {
                 for (b, &(wi, w)) in br[..n].iter().enumerate() {
                     if w.max_element() > 0.0 {
-                        l += w * self.radiance(ctx, world, &world.spawn(&it, wi), sdepth + 1, key.child(b as u64), stats);
+                        let px = PixelSample { key: pixel.key.child(b as u64), ..pixel };
+                        l += w * self.radiance(ctx, world, &world.spawn(&it, wi), sdepth + 1, key.child(b as u64), px, stats);
                     }
                 }
             } else if let Some((wi, w)) = pick_branch(&br[..n], key.uniform(0x5BEC + sdepth as u64)) {
-                l += w * self.radiance(ctx, world, &world.spawn(&it, wi), sdepth + 1, key, stats);
+                l += w * self.radiance(ctx, world, &world.spawn(&it, wi), sdepth + 1, key, pixel, stats);
             }
             if bsdf.is_delta() {
                 return l;
@@ -278,7 +289,7 @@ impl PhotonIntegrator {
             if let Some(bs) = bsdf.sample(&it.sp, wo, key.uniform(0x6C57 + 3 * sdepth as u64), u, TransportMode::Radiance)
                 && bs.weight.max_element() > 0.0
             {
-                l += bs.weight * self.radiance(ctx, world, &world.spawn(&it, bs.wi), sdepth + 1, key, stats);
+                l += bs.weight * self.radiance(ctx, world, &world.spawn(&it, bs.wi), sdepth + 1, key, pixel, stats);
             }
             return l;
         }
@@ -287,7 +298,7 @@ impl PhotonIntegrator {
             map.as_ref()
                 .map_or(Color::ZERO, |m| with_heap(|h| estimate::radiance_in(Some((world, stats)), m, &it, wo, bsdf, &ctx.est_global, h)))
         };
-        let at = GatherPoint { world, it: &it, wo, bsdf, key };
+        let at = GatherPoint { world, it: &it, wo, bsdf, key, pixel: Some(pixel) };
         match self.output {
             Output::All => {
                 l += ctx.direct_light(&at, stats);
@@ -374,10 +385,17 @@ impl Integrator for PhotonIntegrator {
             let last = *counts.last().unwrap_or(&1);
             counts.push((last / 8).max(4));
         }
+        // Per pixel: the first level's and the glossy sampler's point sets are the
+        // pixel's (spp × the rays of a sample).
+        let pixel_split = (gp.gather_per == "pixel").then(|| PixelSplit::new(gp.gather_samples, gp.glossy_samples, cfg.spp));
+        let per_pixel = |n: u32, per_sample: Option<u32>| per_sample.map_or(n as u64, |m| m as u64 * cfg.spp.max(1) as u64);
         let gather_samplers = counts
             .iter()
             .enumerate()
-            .map(|(i, &n)| crate::sampler::make(&cfg.sampler, cfg.seed ^ (0x6A7E + i as u64), Some(n as u64)))
+            .map(|(i, &n)| {
+                let n = if i == 0 { per_pixel(n, pixel_split.map(|p| p.gather)) } else { n as u64 };
+                crate::sampler::make(&cfg.sampler, cfg.seed ^ (0x6A7E + i as u64), Some(n))
+            })
             .collect::<Result<Vec<_>>>()?;
         let direct_sampler = crate::sampler::make(&direct.direct_sampler, cfg.seed ^ 0xD12EC7, Some(direct.direct_samples as u64))?;
         let ctx = PhotonContext {
@@ -389,8 +407,13 @@ impl Integrator for PhotonIntegrator {
             precomputed_radius: max_radius,
             gather_samplers,
             gather_counts: counts,
-            glossy_sampler: crate::sampler::make(&cfg.sampler, cfg.seed ^ 0x6105_5EED, Some(gp.glossy_samples as u64))?,
+            glossy_sampler: crate::sampler::make(
+                &cfg.sampler,
+                cfg.seed ^ 0x6105_5EED,
+                Some(per_pixel(gp.glossy_samples, pixel_split.map(|p| p.glossy))),
+            )?,
             glossy_samples: gp.glossy_samples,
+            pixel_split,
             direct_sampler,
             direct_samples: direct.direct_samples,
         };
@@ -403,7 +426,10 @@ impl Integrator for PhotonIntegrator {
 
     fn li(&self, world: &World, ray: &Ray, sampler: &mut dyn Sampler, stats: &mut TraversalStats) -> Color {
         let Some(ctx) = &self.ctx else { return Color::ZERO };
-        self.radiance(ctx, world, ray, 0, ShadeKey::from_sampler(sampler), stats)
+        let (stream, index) = sampler.current();
+        // The pixel's key: its stream alone (every sample of the pixel shares it).
+        let pixel = PixelSample { key: ShadeKey(crate::math::hash_words(&[stream, 0x9E1])), index };
+        self.radiance(ctx, world, ray, 0, ShadeKey::from_sampler(sampler), pixel, stats)
     }
 
     fn set_output(&mut self, aov: &str) -> Result<()> {

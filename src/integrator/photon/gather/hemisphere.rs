@@ -321,7 +321,7 @@ mod tests {
         let gather_at = |at: &Interaction, n: u32| {
             let bsdf = &*world.bsdf_at(at);
             let mut st = TraversalStats::default();
-            gather(ctx, &GatherPoint { world: &world, it: at, wo, bsdf, key }, n, Refine::OFF, &mut st)
+            gather(ctx, &GatherPoint { world: &world, it: at, wo, bsdf, key, pixel: None }, n, Refine::OFF, &mut st)
         };
         let mean = |g: &[Vec3; 3]| (g[0] + g[1] + g[2]) / 3.0;
         let e_of = |at: &Interaction| crate::math::mean(gather_at(at, 4096).irradiance) as f64;

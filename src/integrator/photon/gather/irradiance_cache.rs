@@ -337,7 +337,7 @@ impl IrradianceCache {
                     }
                     let cos = wo.dot(it.sp.ng).abs().max(0.05);
                     let footprint = path.length * pixel_angle / cos.sqrt();
-                    Some(self.entry_at(ctx, &GatherPoint { world, it: &it, wo, bsdf, key }, footprint, &mut stats))
+                    Some(self.entry_at(ctx, &GatherPoint { world, it: &it, wo, bsdf, key, pixel: None }, footprint, &mut stats))
                 })
                 .collect();
             self.insert(new);

@@ -16,6 +16,9 @@ use crate::math::Color;
 use crate::world::World;
 use glam::Vec3;
 
+/// Values of `gather_per`.
+pub const GATHER_PER: &[&str] = &["sample", "pixel"];
+
 /// Plug-in names.
 pub const GATHERS: &[&str] = &["direct", "final_gather", "precomputed", "irradiance_cache"];
 
@@ -28,6 +31,8 @@ crate::params! {
         gather_bounces: u32 = "1",
         /// Rays drawn from the glossy lobe at glossy gathering points (the diffuse part uses the gather or the cache).
         glossy_samples: u32 = "16",
+        /// What `gather_samples` and `glossy_samples` count at camera-sample hits: rays per camera `sample`, or per `pixel` (each of the pixel's spp samples traces ⌈count / spp⌉ of one point set stratified over the pixel).
+        gather_per: String = "sample",
     }
 }
 
@@ -53,6 +58,9 @@ impl GatherSpec {
             let g = GatherParams::read(r)?;
             if g.gather_bounces == 0 || g.gather_samples == 0 || g.glossy_samples == 0 {
                 anyhow::bail!("gather_bounces, gather_samples and glossy_samples must be at least 1");
+            }
+            if !GATHER_PER.contains(&g.gather_per.as_str()) {
+                anyhow::bail!("gather_per must be one of {}, got `{}`", GATHER_PER.join(", "), g.gather_per);
             }
             Ok(g)
         };
