@@ -179,6 +179,9 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
         ("displaced-sphere", sphere),
     ];
     let mut rows = Vec::new();
+    // Which processor and how busy: the same machine name has run on different
+    // hosts, whose ratios differ.
+    eprintln!("machine: {}", machine_line());
     if !a.json {
         print_header();
     }
@@ -226,7 +229,33 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
     if rows.is_empty() {
         bail!("no case could be run (models missing? see the messages above)");
     }
+    eprintln!("machine at the end: {}", machine_line());
     Ok(())
+}
+
+/// The processor model, the logical CPU count and the load average, for the record
+/// of a comparison (`unknown` where /proc does not say).
+fn machine_line() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|s| cpu_model(&s)).unwrap_or_else(|| "unknown CPU".into());
+    let n = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let load = std::fs::read_to_string("/proc/loadavg").ok().map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "));
+    format!("{cpu}, {n} logical CPUs, load average {}", load.as_deref().unwrap_or("unknown"))
+}
+
+/// The `model name` of /proc/cpuinfo text (with family/model numbers, which name a
+/// processor generation where the model name is generic, as under some hypervisors).
+fn cpu_model(cpuinfo: &str) -> Option<String> {
+    let field = |key: &str| {
+        cpuinfo.lines().find_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            (k.trim() == key).then(|| v.trim().to_string())
+        })
+    };
+    let name = field("model name")?;
+    Some(match (field("cpu family"), field("model")) {
+        (Some(f), Some(m)) => format!("{name} (family {f} model {m})"),
+        _ => name,
+    })
 }
 
 /// Fills each row's median and range of the per-repeat ratios (rows of every
@@ -414,6 +443,14 @@ mod tests {
         assert_eq!((rows[1].paired_median, rows[1].paired_range), (2.5, [1.0, 4.0]));
         add_paired(&mut rows, &reps[..3]);
         assert_eq!(rows[0].paired_median, 1.1);
+    }
+
+    #[test]
+    fn cpu_model_names_the_processor_generation() {
+        let text = "processor\t: 0\nvendor_id\t: GenuineIntel\ncpu family\t: 6\nmodel\t\t: 207\nmodel name\t: Intel(R) Xeon(R) Processor\n";
+        assert_eq!(cpu_model(text).as_deref(), Some("Intel(R) Xeon(R) Processor (family 6 model 207)"));
+        assert_eq!(cpu_model("model name\t: AMD EPYC\n").as_deref(), Some("AMD EPYC"));
+        assert_eq!(cpu_model("processor\t: 0\n"), None);
     }
 
     #[test]
