@@ -32,20 +32,6 @@ pub trait Integrator: Send + Sync {
     fn li_any(&self, world: &World, ray: &Ray, sampler: &mut AnySampler, stats: &mut TraversalStats) -> Color {
         crate::sampler::with_sampler!(sampler, s => self.li(world, ray, s, stats))
     }
-    /// How many pixel samples the render pass hands [`Integrator::li_batch`] at once;
-    /// 1 (the default) = it calls [`Integrator::li_any`] per sample.
-    fn batch_lanes(&self) -> usize {
-        1
-    }
-    /// Radiance along several camera rays at once: `out[k]` for `rays[k]`, drawing from
-    /// `samplers[k]` (each started for its own sample, its pixel dimensions used; all
-    /// of one sampler type) — the values [`Integrator::li_any`] gives one by one.
-    /// Default: `li_any` per ray, in order.
-    fn li_batch(&self, world: &World, rays: &[Ray], samplers: &mut [AnySampler], stats: &mut TraversalStats, out: &mut [Color]) {
-        for ((ray, s), o) in rays.iter().zip(samplers.iter_mut()).zip(out.iter_mut()) {
-            *o = self.li_any(world, ray, s, stats);
-        }
-    }
     /// Switches what `li` returns to an extra image (AOV) by name.
     fn set_output(&mut self, aov: &str) -> anyhow::Result<()> {
         anyhow::bail!("integrator `{}` has no extra image `{aov}`", self.name())

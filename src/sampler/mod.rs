@@ -217,56 +217,6 @@ macro_rules! with_sampler {
 }
 pub use with_sampler;
 
-/// A sampler type of [`AnySampler`], borrowed back out of the enum: loops over several
-/// samplers of one type (one per sample of a batch) match the first with
-/// [`with_sampler_type!`] and borrow each with [`Concrete::of`].
-pub trait Concrete: Sampler + Sized {
-    /// The sampler inside `any` when it is of this type.
-    fn of(any: &mut AnySampler) -> Option<&mut Self>;
-}
-
-macro_rules! concrete {
-    ($($variant:ident => $t:ty),*) => {$(
-        impl Concrete for $t {
-            #[inline]
-            fn of(any: &mut AnySampler) -> Option<&mut Self> {
-                match any {
-                    AnySampler::$variant(s) => Some(s),
-                    _ => None,
-                }
-            }
-        }
-    )*};
-}
-concrete!(Random => random::RandomSampler, Halton => halton::HaltonSampler, Hammersley => hammersley::HammersleySampler, Sobol => sobol::SobolSampler);
-
-/// `with_sampler_type!(any, S => expr)`: evaluates `expr` with the type alias `S` naming
-/// the concrete sampler type inside the [`AnySampler`] `any` (taken by reference).
-#[macro_export]
-macro_rules! with_sampler_type {
-    ($any:expr, $t:ident => $body:expr) => {
-        match $any {
-            $crate::sampler::AnySampler::Random(_) => {
-                type $t = $crate::sampler::random::RandomSampler;
-                $body
-            }
-            $crate::sampler::AnySampler::Halton(_) => {
-                type $t = $crate::sampler::halton::HaltonSampler;
-                $body
-            }
-            $crate::sampler::AnySampler::Hammersley(_) => {
-                type $t = $crate::sampler::hammersley::HammersleySampler;
-                $body
-            }
-            $crate::sampler::AnySampler::Sobol(_) => {
-                type $t = $crate::sampler::sobol::SobolSampler;
-                $body
-            }
-        }
-    };
-}
-pub use with_sampler_type;
-
 /// [`make`] without the box.
 pub fn make_any(name: &str, seed: u64, count: Option<u64>) -> Result<AnySampler> {
     Ok(match name {

@@ -14,11 +14,6 @@
 //! the BSDF sample leaving k are *direct*; light reaching k through delta (mirror,
 //! glass) vertices only is *caustic*; light that met another non-delta vertex after
 //! k is *indirect*. The three add up to the full image.
-//!
-//! The render pass traces a pixel's samples [`batch::LANES`] at a time, stage by stage
-//! (`batch.rs`), with the same bits as one by one.
-
-mod batch;
 
 use super::Integrator;
 use crate::accel::TraversalStats;
@@ -80,16 +75,6 @@ impl Integrator for PathIntegrator {
 
     fn li_any(&self, world: &World, ray: &Ray, sampler: &mut AnySampler, stats: &mut TraversalStats) -> Color {
         crate::sampler::with_sampler!(sampler, s => self.trace(world, ray, s, stats))
-    }
-
-    fn batch_lanes(&self) -> usize {
-        batch::LANES
-    }
-
-    fn li_batch(&self, world: &World, rays: &[Ray], samplers: &mut [AnySampler], stats: &mut TraversalStats, out: &mut [Color]) {
-        if let Some(first) = samplers.first() {
-            crate::sampler::with_sampler_type!(first, S => self.trace_batch::<S>(world, rays, samplers, stats, out))
-        }
     }
 }
 
