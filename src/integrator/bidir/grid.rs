@@ -139,6 +139,9 @@ impl HashGrid {
             }
         }
         let buckets = &mut buckets[..n];
+        for &bk in buckets.iter() {
+            super::prefetch(&self.starts[bk as usize], 8);
+        }
         buckets.sort_unstable();
         let mut last = u32::MAX;
         for &bk in buckets.iter() {
