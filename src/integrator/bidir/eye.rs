@@ -191,6 +191,16 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
     l
 }
 
+/// A reverse density, which the MIS weights only multiply by its subpath's partial
+/// `factor` (dVC or dVM): not evaluated where that is 0 — at a camera subpath's first
+/// non-delta vertex after only delta ones (where merging happens by default), at a
+/// light subpath's first vertex from a delta light — as 0 · pdf = 0 for any finite
+/// density (images unchanged).
+#[inline]
+pub(super) fn if_used(factor: f32, pdf: impl FnOnce() -> f32) -> f32 {
+    if factor == 0.0 { 0.0 } else { pdf() }
+}
+
 /// Index of draw `k` of `m` stratified draws from a pool of `n` vertices, by the one
 /// uniform number `u`.
 #[inline]
@@ -244,7 +254,7 @@ fn direct<S: Sampler + ?Sized, R: Record>(
         return Color::ZERO;
     }
     let bsdf_dir = bsdf.pdf(&it.sp, wo, il.wi);
-    let bsdf_rev = bsdf.pdf(&it.sp, il.wi, wo);
+    let bsdf_rev = if_used(partials.dvc, || bsdf.pdf(&it.sp, il.wi, wo));
     let w = weight_direct(
         &ctx.f,
         partials,
@@ -307,8 +317,8 @@ pub fn connect(
         cam,
         cam_to_light_a,
         light_to_cam_a,
-        lbsdf.pdf(&v.it.sp, -dir, v.w_prev),
-        bsdf.pdf(&it.sp, dir, wo),
+        if_used(v.partials.dvc, || lbsdf.pdf(&v.it.sp, -dir, v.w_prev)),
+        if_used(cam.dvc, || bsdf.pdf(&it.sp, dir, wo)),
     );
     let g = dir.dot(it.sp.ns()).abs() * adjoint_cos(&v.it.sp, v.w_prev, -dir) / dist2;
     let c = f_c * f_l * v.throughput * (w * g);
@@ -348,7 +358,7 @@ fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, 
             let w = if ctx.mode.ppm {
                 1.0
             } else {
-                weight_merge(&ctx.f, &v.partials, cam, bsdf.pdf(&it.sp, wo, v.w_prev), bsdf.pdf(&it.sp, v.w_prev, wo))
+                weight_merge(&ctx.f, &v.partials, cam, bsdf.pdf(&it.sp, wo, v.w_prev), if_used(cam.dvm, || bsdf.pdf(&it.sp, v.w_prev, wo)))
             };
             *sum += f * v.throughput * w;
         }
