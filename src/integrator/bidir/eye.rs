@@ -92,7 +92,24 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
     let mut len = 1u32;
     let mut specular_path = true;
     let mode = ctx.mode;
+    let pool = pool.filter(|_| mode.connect && !mode.lt);
     loop {
+        // The pool draws of the vertex this ray will hit (if it is non-delta), made
+        // before the ray is traced so that fetching the drawn vertices (random places
+        // in the pass's pool) overlaps the traversal. The sampler's values depend on
+        // the dimension only, not on the order of the draws.
+        let u_pool = match pool {
+            Some(pool) if len < ctx.max_len => {
+                s.set_dimension(bounce_dim(len - 1) + BOUNCE_POOL);
+                let u = s.next_1d();
+                for k in 0..ctx.pool_draws.min(4) {
+                    let v: *const LightVertex = &pool.vertices[pool_index(k, u, ctx.pool_draws, pool.vertices.len())];
+                    super::prefetch(v, std::mem::size_of::<LightVertex>());
+                }
+                u
+            }
+            _ => 0.0,
+        };
         let Some(it) = world.intersect(&ray, stats) else {
             // Left the scene: the environment (s = 0), SmallVCM's background hit. The
             // partials stay as the last scattering left them: a light at infinity has
@@ -127,13 +144,10 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
             if mode.connect {
                 l += direct(ctx, s, bsdf, &it, wo, &partials, beta, len, rec, stats);
                 if let Some(pool) = pool {
-                    // Stratified draws: one uniform number, m evenly spaced picks.
-                    s.set_dimension(bounce_dim(len - 1) + BOUNCE_POOL);
-                    let u = s.next_1d();
+                    // Stratified draws: one uniform number (`u_pool`), m evenly spaced picks.
                     let (m, n) = (ctx.pool_draws, pool.vertices.len());
                     for k in 0..m {
-                        let i = (((k as f32 + u) / m as f32 * n as f32) as usize).min(n - 1);
-                        let v = &pool.vertices[i];
+                        let v = &pool.vertices[pool_index(k, u_pool, m, n)];
                         if v.len + 1 + len > ctx.max_len {
                             continue;
                         }
@@ -175,6 +189,23 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
         len += 1;
     }
     l
+}
+
+/// A reverse density, which the MIS weights only multiply by its subpath's partial
+/// `factor` (dVC or dVM): not evaluated where that is 0 — at a camera subpath's first
+/// non-delta vertex after only delta ones (where merging happens by default), at a
+/// light subpath's first vertex from a delta light — as 0 · pdf = 0 for any finite
+/// density (images unchanged).
+#[inline]
+pub(super) fn if_used(factor: f32, pdf: impl FnOnce() -> f32) -> f32 {
+    if factor == 0.0 { 0.0 } else { pdf() }
+}
+
+/// Index of draw `k` of `m` stratified draws from a pool of `n` vertices, by the one
+/// uniform number `u`.
+#[inline]
+fn pool_index(k: u32, u: f32, m: u32, n: usize) -> usize {
+    (((k as f32 + u) / m as f32 * n as f32) as usize).min(n - 1)
 }
 
 /// Weight of a camera path of `len` edges ending on an emitter (s = 0) with the
@@ -223,7 +254,7 @@ fn direct<S: Sampler + ?Sized, R: Record>(
         return Color::ZERO;
     }
     let bsdf_dir = bsdf.pdf(&it.sp, wo, il.wi);
-    let bsdf_rev = bsdf.pdf(&it.sp, il.wi, wo);
+    let bsdf_rev = if_used(partials.dvc, || bsdf.pdf(&it.sp, il.wi, wo));
     let w = weight_direct(
         &ctx.f,
         partials,
@@ -286,8 +317,8 @@ pub fn connect(
         cam,
         cam_to_light_a,
         light_to_cam_a,
-        lbsdf.pdf(&v.it.sp, -dir, v.w_prev),
-        bsdf.pdf(&it.sp, dir, wo),
+        if_used(v.partials.dvc, || lbsdf.pdf(&v.it.sp, -dir, v.w_prev)),
+        if_used(cam.dvc, || bsdf.pdf(&it.sp, dir, wo)),
     );
     let g = dir.dot(it.sp.ns()).abs() * adjoint_cos(&v.it.sp, v.w_prev, -dir) / dist2;
     let c = f_c * f_l * v.throughput * (w * g);
@@ -306,12 +337,13 @@ fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, 
     let r2 = ctx.radius * ctx.radius;
     let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
     let mut sum = Color::ZERO;
-    m.grid.for_each_bucket(it.p, |slots| {
-        for k in m.grid.keys(slots) {
-            if k.p.distance_squared(it.p) > r2 {
-                continue;
-            }
-            let v = &m.vertices[k.index as usize];
+    // The vertices within the radius are gathered (and their fetch started) before any
+    // is read, in batches, so their loads overlap; the sum runs in the same order.
+    let mut batch = [0u32; MERGE_BATCH];
+    let mut k = 0;
+    let flush = |batch: &[u32], sum: &mut Color| {
+        for &i in batch {
+            let v = &m.vertices[i as usize];
             if v.len + len > ctx.max_len {
                 continue;
             }
@@ -326,10 +358,28 @@ fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, 
             let w = if ctx.mode.ppm {
                 1.0
             } else {
-                weight_merge(&ctx.f, &v.partials, cam, bsdf.pdf(&it.sp, wo, v.w_prev), bsdf.pdf(&it.sp, v.w_prev, wo))
+                weight_merge(&ctx.f, &v.partials, cam, bsdf.pdf(&it.sp, wo, v.w_prev), if_used(cam.dvm, || bsdf.pdf(&it.sp, v.w_prev, wo)))
             };
-            sum += f * v.throughput * w;
+            *sum += f * v.throughput * w;
+        }
+    };
+    m.grid.for_each_bucket(it.p, |slots| {
+        for key in m.grid.keys(slots) {
+            if key.p.distance_squared(it.p) > r2 {
+                continue;
+            }
+            super::prefetch(&m.vertices[key.index as usize], std::mem::size_of::<LightVertex>());
+            batch[k] = key.index;
+            k += 1;
+            if k == MERGE_BATCH {
+                flush(&batch, &mut sum);
+                k = 0;
+            }
         }
     });
+    flush(&batch[..k], &mut sum);
     sum
 }
+
+/// Light vertices within the radius gathered before they are read in [`merge_at`].
+const MERGE_BATCH: usize = 16;

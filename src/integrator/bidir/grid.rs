@@ -139,7 +139,18 @@ impl HashGrid {
             }
         }
         let buckets = &mut buckets[..n];
+        for &bk in buckets.iter() {
+            super::prefetch(&self.starts[bk as usize], 8);
+        }
         buckets.sort_unstable();
+        // Their keys' first lines too, once the starts are in.
+        let mut last = u32::MAX;
+        for &bk in buckets.iter() {
+            if bk != last {
+                super::prefetch(self.keys.as_ptr().wrapping_add(self.starts[bk as usize] as usize), 16);
+            }
+            last = bk;
+        }
         let mut last = u32::MAX;
         for &bk in buckets.iter() {
             if bk == last {

@@ -177,7 +177,11 @@ fn connect_to_camera(ctx: &Ctx, bsdf: &Bsdf, v: &LightVertex, splats: &mut Vec<S
     let inv_d2 = 1.0 / (k.dist * k.dist);
     // Area density of this vertex when sampled from the eye.
     let camera_pdf_a = k.pdf_dir * cos_g * inv_d2;
-    let weight = if ctx.mode.lt { 1.0 } else { weight_camera(&ctx.f, &v.partials, camera_pdf_a, bsdf.pdf(&v.it.sp, k.to_eye, v.w_prev)) };
+    let weight = if ctx.mode.lt {
+        1.0
+    } else {
+        weight_camera(&ctx.f, &v.partials, camera_pdf_a, super::eye::if_used(v.partials.dvc, || bsdf.pdf(&v.it.sp, k.to_eye, v.w_prev)))
+    };
     let value = v.throughput * f * (weight * adjoint_cos(&v.it.sp, v.w_prev, k.to_eye) * k.pdf_dir * inv_d2 / ctx.f.light_paths);
     if value.max_element() <= 0.0 || !crate::math::is_finite(value) {
         return;
