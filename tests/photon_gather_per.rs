@@ -60,9 +60,10 @@ fn render_keys(scene: &str, gather: &str, keys: &[(&str, toml::Value)]) -> Film 
 
 /// The per-pixel split changes the image (the rays are fewer and drawn from the
 /// pixel's point set). By default `final_gather` and `precomputed` count their rays
-/// per pixel (256 diffuse, 64 glossy), while `irradiance_cache` keeps counting them per
-/// camera sample (64 diffuse for points no entry covers, 16 glossy): its default
-/// image is the one it had before the per-pixel default, and differs from the split.
+/// per pixel (256 diffuse, 64 glossy; 64 and 16 when counted per sample), while
+/// `irradiance_cache` keeps counting them per camera sample (64 diffuse for points no
+/// entry covers, 16 glossy): its default image is the one it had before the per-pixel
+/// default, and differs from the split.
 #[test]
 fn gathers_count_per_pixel_by_default_and_the_cache_per_sample() {
     let a = render("cornell", "precomputed", "pixel", 16, 16);
@@ -78,6 +79,9 @@ fn gathers_count_per_pixel_by_default_and_the_cache_per_sample() {
             "{gather}: default is not 256 + 64 rays a pixel"
         );
         assert!(default != render_keys("cornell-glossy", gather, &keys("sample", 256, 64)), "{gather}: the split made no difference");
+        // Counted per sample, the counts left `auto` are the per-sample ones.
+        let per_sample = render_keys("cornell-glossy", gather, &[("gather_per", "sample".into())]);
+        assert!(per_sample == render_keys("cornell-glossy", gather, &keys("sample", 64, 16)), "{gather}: per-sample defaults");
     }
     let default = render_keys("cornell-glossy", "irradiance_cache", &[]);
     assert!(default == render_keys("cornell-glossy", "irradiance_cache", &keys("sample", 64, 16)), "irradiance_cache: default changed");

@@ -25,25 +25,25 @@ pub const GATHERS: &[&str] = &["direct", "final_gather", "precomputed", "irradia
 crate::params! {
     /// What every gathering plug-in (`final_gather`, `precomputed`, `irradiance_cache`) reads.
     pub struct GatherParams {
-        /// Final-gather rays at the first level (cosine-weighted, points from the configured sampler), counted as `gather_per` says; `auto` = 256 for `final_gather` and `precomputed` (a pixel's rays under `gather_per = pixel`), 64 for `irradiance_cache` (the rays of a point the cache does not cover, per camera sample; its entries' rays are `ic_samples`).
+        /// Final-gather rays at the first level (cosine-weighted, points from the configured sampler), counted as `gather_per` says; `auto` = 256 a `pixel`, 64 a `sample` (for `irradiance_cache`, whose entries have `ic_samples` rays, the rays at a point no entry covers).
         gather_samples: Option<u32> = "auto",
         /// Final-gather levels (≥ 1); each deeper level traces, from every hit of the level above, 1/8 of that level's `gather_samples` (at least 4).
         gather_bounces: u32 = "1",
-        /// Rays drawn from the glossy lobe at glossy gathering points (the diffuse part uses the gather or the cache), counted as `gather_per` says; `auto` = 64 for `final_gather` and `precomputed` (a pixel's rays under `gather_per = pixel`), 16 for `irradiance_cache` (per camera sample).
+        /// Rays drawn from the glossy lobe at glossy gathering points (the diffuse part uses the gather or the cache), counted as `gather_per` says; `auto` = 64 a `pixel`, 16 a `sample`.
         glossy_samples: Option<u32> = "auto",
         /// What `gather_samples` and `glossy_samples` count at camera-sample hits: the rays of a `pixel` (each of its spp samples traces ⌈count / spp⌉ of one point set stratified over the pixel, so the cost per pixel does not depend on spp) or of each camera `sample`; `auto` = `pixel` for `final_gather` and `precomputed`, `sample` for `irradiance_cache`.
         gather_per: Option<String> = "auto",
     }
 }
 
-/// Default first-level gather rays per pixel of `final_gather` and `precomputed`.
+/// Default first-level gather rays per pixel (`gather_per = "pixel"`).
 pub const PIXEL_GATHER_SAMPLES: u32 = 256;
-/// Default glossy-lobe rays per pixel of `final_gather` and `precomputed`.
+/// Default glossy-lobe rays per pixel.
 pub const PIXEL_GLOSSY_SAMPLES: u32 = 64;
-/// Default first-level gather rays per camera sample of `irradiance_cache`.
-pub const CACHE_GATHER_SAMPLES: u32 = 64;
-/// Default glossy-lobe rays per camera sample of `irradiance_cache`.
-pub const CACHE_GLOSSY_SAMPLES: u32 = 16;
+/// Default first-level gather rays per camera sample (`gather_per = "sample"`).
+pub const SAMPLE_GATHER_SAMPLES: u32 = 64;
+/// Default glossy-lobe rays per camera sample.
+pub const SAMPLE_GLOSSY_SAMPLES: u32 = 16;
 
 /// The final-gather settings a plug-in uses: [`GatherParams`] with every `auto`
 /// resolved for that plug-in.
@@ -60,17 +60,18 @@ pub struct Gathering {
 }
 
 impl Gathering {
-    /// Resolves `p` for plug-in `name`: the per-pixel budget of `final_gather` and
-    /// `precomputed`, or the irradiance cache's per-sample counts (its lookups cost
-    /// nothing per ray; what it traces at render time is a gather at points no entry
-    /// covers and the glossy lobe, per camera sample as before the per-pixel default).
+    /// Resolves `p` for plug-in `name`: `final_gather` and `precomputed` count their
+    /// rays per pixel, the irradiance cache per camera sample (its entries, which hold
+    /// most of its gathering, have their own count; a point no entry covers is gathered
+    /// alone, with the full count); counts left `auto` follow what they count.
     pub fn resolve(name: &str, p: &GatherParams) -> anyhow::Result<Self> {
         let cache = name == "irradiance_cache";
         let per = p.gather_per.as_deref().unwrap_or(if cache { "sample" } else { "pixel" });
         if !GATHER_PER.contains(&per) {
             anyhow::bail!("gather_per must be one of {}, got `{per}`", GATHER_PER.join(", "));
         }
-        let (g, s) = if cache { (CACHE_GATHER_SAMPLES, CACHE_GLOSSY_SAMPLES) } else { (PIXEL_GATHER_SAMPLES, PIXEL_GLOSSY_SAMPLES) };
+        let (g, s) =
+            if per == "pixel" { (PIXEL_GATHER_SAMPLES, PIXEL_GLOSSY_SAMPLES) } else { (SAMPLE_GATHER_SAMPLES, SAMPLE_GLOSSY_SAMPLES) };
         let g = Gathering {
             gather_samples: p.gather_samples.unwrap_or(g),
             gather_bounces: p.gather_bounces,
@@ -131,9 +132,9 @@ impl GatherSpec {
     pub fn gather_params(&self) -> Gathering {
         match self {
             GatherSpec::Direct => Gathering {
-                gather_samples: CACHE_GATHER_SAMPLES,
+                gather_samples: SAMPLE_GATHER_SAMPLES,
                 gather_bounces: 1,
-                glossy_samples: CACHE_GLOSSY_SAMPLES,
+                glossy_samples: SAMPLE_GLOSSY_SAMPLES,
                 per_pixel: false,
             },
             GatherSpec::FinalGather(g) | GatherSpec::Precomputed(g, _) | GatherSpec::Cache(g, _, _) => *g,
