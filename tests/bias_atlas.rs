@@ -43,7 +43,10 @@ fn ci_manifest(dir: &Path) -> (std::path::PathBuf, usize, Vec<String>) {
                         set(t, "gather_samples", 8.into());
                         set(t, "ic_samples", 16.into());
                     }
-                    _ => set(t, "gather_samples", 8.into()),
+                    _ => {
+                        set(t, "gather_samples", 8.into());
+                        set(t, "gather_per", "sample".into());
+                    }
                 }
             }
         }

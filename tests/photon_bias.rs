@@ -58,7 +58,7 @@ fn leaky_box_interior_stays_dark() {
     for gather in GATHERS {
         let cfg = RenderConfig { spp: 2, resolution: Some(res), ..Default::default() }.with("gather", gather).with("photons", 100_000);
         // `direct` does not gather, so it has no gather_samples (setting it is an error).
-        let cfg = if gather == "direct" { cfg } else { cfg.with("gather_samples", 32) };
+        let cfg = if gather == "direct" { cfg } else { cfg.with("gather_samples", 32).with("gather_per", "sample") };
         let m = photon(&scene, cfg).mean().max_element();
         assert!(m <= (10.0 * reference).max(1e-5), "{gather}: interior mean {m} vs path {reference}");
     }

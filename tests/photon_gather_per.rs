@@ -46,21 +46,49 @@ fn per_pixel_gather_keeps_the_per_sample_mean() {
     }
 }
 
+/// A small render of `scene` with `gather`, and the gather keys in `keys` set.
+fn render_keys(scene: &str, gather: &str, keys: &[(&str, toml::Value)]) -> Film {
+    let mut cfg = RenderConfig { integrator: "photon".into(), spp: 4, resolution: Some([16, 16]), seed: 3, ..Default::default() }
+        .with("gather", gather)
+        .with("photons", 5_000)
+        .with("caustic_photons", 0);
+    for (k, v) in keys {
+        cfg = cfg.with(k, v.clone());
+    }
+    render_scene(builtin(scene).unwrap(), &cfg, true).unwrap().film
+}
+
 /// The per-pixel split changes the image (the rays are fewer and drawn from the
-/// pixel's point set), and the default counts rays per camera sample.
+/// pixel's point set). By default `final_gather` and `precomputed` count their rays
+/// per pixel (256 diffuse, 64 glossy; 64 and 16 when counted per sample), while
+/// `irradiance_cache` keeps counting them per camera sample (64 diffuse for points no
+/// entry covers, 16 glossy): its default image is the one it had before the per-pixel
+/// default, and differs from the split.
 #[test]
-fn per_pixel_gather_is_a_different_estimate_and_not_the_default() {
+fn gathers_count_per_pixel_by_default_and_the_cache_per_sample() {
     let a = render("cornell", "precomputed", "pixel", 16, 16);
     let b = render("cornell", "precomputed", "sample", 16, 16);
     assert_ne!(a.mean(), b.mean());
-    let cfg = RenderConfig { integrator: "photon".into(), spp: 2, resolution: Some([16, 16]), ..Default::default() }
-        .with("gather", "precomputed")
-        .with("photons", 5_000)
-        .with("caustic_photons", 0)
-        .with("gather_samples", 16);
-    let default = render_scene(builtin("cornell").unwrap(), &cfg, true).unwrap().film;
-    let sample = render_scene(builtin("cornell").unwrap(), &cfg.clone().with("gather_per", "sample"), true).unwrap().film;
-    assert_eq!(default.mean(), sample.mean());
+    let keys = |per: &str, g: i64, s: i64| vec![("gather_per", per.into()), ("gather_samples", g.into()), ("glossy_samples", s.into())];
+    // `cornell-glossy`: the glossy lobe is gathered at camera points, so the glossy
+    // count and split show in the image too.
+    for gather in ["precomputed", "final_gather"] {
+        let default = render_keys("cornell-glossy", gather, &[]);
+        assert!(
+            default == render_keys("cornell-glossy", gather, &keys("pixel", 256, 64)),
+            "{gather}: default is not 256 + 64 rays a pixel"
+        );
+        assert!(default != render_keys("cornell-glossy", gather, &keys("sample", 256, 64)), "{gather}: the split made no difference");
+        // Counted per sample, the counts left `auto` are the per-sample ones.
+        let per_sample = render_keys("cornell-glossy", gather, &[("gather_per", "sample".into())]);
+        assert!(per_sample == render_keys("cornell-glossy", gather, &keys("sample", 64, 16)), "{gather}: per-sample defaults");
+    }
+    let default = render_keys("cornell-glossy", "irradiance_cache", &[]);
+    assert!(default == render_keys("cornell-glossy", "irradiance_cache", &keys("sample", 64, 16)), "irradiance_cache: default changed");
+    assert!(
+        default != render_keys("cornell-glossy", "irradiance_cache", &keys("pixel", 64, 16)),
+        "irradiance_cache: the split made no difference"
+    );
 }
 
 #[test]

@@ -12,10 +12,15 @@ fn photon_cfg(gather: &str, photons: u32) -> RenderConfig {
         .with("caustic_photons", 0)
 }
 
-/// `cfg` with `gather_samples` = n, for the plug-ins that gather (`direct` has no such
+/// `cfg` with `gather_samples` = n rays at every camera sample (`gather_per = "sample"`),
+/// for the plug-ins that gather (`direct` has no such
 /// parameter, and setting it would be an error).
 fn gather_samples(cfg: RenderConfig, n: u32) -> RenderConfig {
-    if cfg.params.raw("gather").and_then(|v| v.as_str()) == Some("direct") { cfg } else { cfg.with("gather_samples", n) }
+    if cfg.params.raw("gather").and_then(|v| v.as_str()) == Some("direct") {
+        cfg
+    } else {
+        cfg.with("gather_samples", n).with("gather_per", "sample")
+    }
 }
 
 /// Mean squared error per channel after a box blur of radius `r` pixels, which keeps
@@ -88,7 +93,9 @@ fn white_furnace_energy() {
 #[test]
 fn photon_map_views_in_the_furnace() {
     let (a, le) = (0.5f32, 1.0f32);
-    let cfg = RenderConfig { resolution: Some([12, 12]), ..photon_cfg("final_gather", 100_000) }.with("gather_samples", 8);
+    let cfg = RenderConfig { resolution: Some([12, 12]), ..photon_cfg("final_gather", 100_000) }
+        .with("gather_samples", 8)
+        .with("gather_per", "sample");
     let aovs = ["photons-direct".to_string(), "photons-indirect".to_string()];
     let out = photonlab::pipeline::render_scene_with_aovs(furnace(a, le, 24), &cfg, true, &aovs).unwrap();
     for (name, want) in [("photons-direct", a * le), ("photons-indirect", le * a * a / (1.0 - a))] {
@@ -116,14 +123,14 @@ fn cornell_convergence_and_low_frequency_noise() {
     };
     let ladder: Vec<f64> = [2_000, 16_000, 128_000].iter().map(|&n| err(photon_cfg("direct", n))).collect();
     assert!(ladder[1] < ladder[0] && ladder[2] < ladder[1], "direct visualisation error should fall with photons: {ladder:?}");
-    let fg = err(photon_cfg("final_gather", 2_000).with("gather_samples", 64));
-    let ic = err(photon_cfg("irradiance_cache", 2_000).with("gather_samples", 64));
+    let fg = err(photon_cfg("final_gather", 2_000).with("gather_samples", 64).with("gather_per", "sample"));
+    let ic = err(photon_cfg("irradiance_cache", 2_000).with("gather_samples", 64).with("gather_per", "sample"));
     eprintln!("ladder {ladder:?} fg {fg} ic {ic}");
     assert!(fg < 0.5 * ladder[0], "final gather {fg} vs direct visualisation {}", ladder[0]);
     assert!(ic < 0.5 * ladder[0], "irradiance cache {ic} vs direct visualisation {}", ladder[0]);
     // More gather rays reduce the final-gather error too.
-    let fg_few = err(photon_cfg("final_gather", 16_000).with("gather_samples", 4));
-    let fg_many = err(photon_cfg("final_gather", 16_000).with("gather_samples", 64));
+    let fg_few = err(photon_cfg("final_gather", 16_000).with("gather_samples", 4).with("gather_per", "sample"));
+    let fg_many = err(photon_cfg("final_gather", 16_000).with("gather_samples", 64).with("gather_per", "sample"));
     assert!(fg_many < fg_few, "gather samples: 4 -> {fg_few}, 64 -> {fg_many}");
 }
 

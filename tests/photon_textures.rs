@@ -102,7 +102,7 @@ fn photon(scene: &Scene, gather: &str) -> Film {
         .with("gather", gather)
         .with("photons", 200_000)
         .with("caustic_photons", if specular { 50_000 } else { 0 });
-    render(scene, if gather == "direct" { cfg } else { cfg.with("gather_samples", 32) })
+    render(scene, if gather == "direct" { cfg } else { cfg.with("gather_samples", 32).with("gather_per", "sample") })
 }
 
 /// Every gather's 16-px blocks against `path`: the worst |relative error| must stay

@@ -22,7 +22,7 @@ fn lamp_panel_room_stays_dark_for_every_gather_and_progressive_integrator() {
         let cfg = RenderConfig { integrator: "photon".into(), spp: 2, resolution: res, seed: 3, ..Default::default() }
             .with("gather", gather)
             .with("photons", 100_000);
-        if gather == "direct" { cfg } else { cfg.with("gather_samples", 32) }
+        if gather == "direct" { cfg } else { cfg.with("gather_samples", 32).with("gather_per", "sample") }
     };
     let mut runs: Vec<(String, RenderConfig)> =
         ["direct", "final_gather", "precomputed", "irradiance_cache"].iter().map(|g| (format!("photon, {g}"), photon(g))).collect();

@@ -43,9 +43,9 @@ pub struct RenderArgs {
     /// Photon integrator: photons in the caustic map (0: none; `cornell` has no glass).
     #[arg(long, default_value_t = 0)]
     pub caustic_photons: u32,
-    /// Photon integrator: final-gather rays per point.
-    #[arg(long, default_value_t = 64)]
-    pub gather_samples: u32,
+    /// Photon integrator: `gather_samples` (default: the gather plug-in's own, e.g. 256 rays a pixel for `precomputed`).
+    #[arg(long)]
+    pub gather_samples: Option<u32>,
     /// Worker threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -71,7 +71,7 @@ impl Default for RenderArgs {
             spp: 64,
             photons: 200_000,
             caustic_photons: 0,
-            gather_samples: 64,
+            gather_samples: None,
             threads: 0,
             reps: 3,
             seed: 0,
@@ -140,8 +140,8 @@ fn cases(args: &RenderArgs) -> Result<Vec<Case>> {
                     };
                     if let Some(g) = &gather {
                         cfg = cfg.with("gather", g.as_str()).with("photons", args.photons).with("caustic_photons", args.caustic_photons);
-                        if g != "direct" {
-                            cfg = cfg.with("gather_samples", args.gather_samples);
+                        if let Some(n) = args.gather_samples.filter(|_| g != "direct") {
+                            cfg = cfg.with("gather_samples", n);
                         }
                         // Hammersley needs its photon count up front.
                         if sampler == "hammersley" {

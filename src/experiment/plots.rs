@@ -21,7 +21,7 @@ fn axis_label(key: &str) -> String {
         "photons" => "photons stored in the global maps".into(),
         "caustic_photons" => "photons stored in the caustic map".into(),
         "emit_photons" => "photon paths emitted".into(),
-        "gather_samples" => "final-gather rays per point".into(),
+        "gather_samples" => "final-gather rays (per pixel, or per camera sample with gather_per = sample)".into(),
         "direct_samples" => "shadow rays per shading point".into(),
         "k" | "caustic_k" => format!("{key} (photons per estimate)"),
         "max_radius" | "caustic_max_radius" => format!("{key} (scene units)"),

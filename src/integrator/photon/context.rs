@@ -99,7 +99,9 @@ pub struct PixelSample {
     pub index: u64,
 }
 
-/// `gather_per = "pixel"`: the first-level gather rays counted per pixel. Camera
+/// `gather_per = "pixel"` (the default of `final_gather` and `precomputed`): the
+/// first-level gather rays counted per pixel, so a pixel's gather costs the same at any
+/// spp (pbrt-v4's and Mitsuba's budgets are per pixel too). Camera
 /// sample i of the pixel traces the rays i·n … i·n + n − 1 of one point set per
 /// pixel (so the pixel's rays are stratified together), each weighted 1/n: every
 /// sample's gather stays an unbiased estimate of its own point's irradiance.

@@ -387,7 +387,7 @@ impl Integrator for PhotonIntegrator {
         }
         // Per pixel: the first level's and the glossy sampler's point sets are the
         // pixel's (spp × the rays of a sample).
-        let pixel_split = (gp.gather_per == "pixel").then(|| PixelSplit::new(gp.gather_samples, gp.glossy_samples, cfg.spp));
+        let pixel_split = gp.per_pixel.then(|| PixelSplit::new(gp.gather_samples, gp.glossy_samples, cfg.spp));
         let per_pixel = |n: u32, per_sample: Option<u32>| per_sample.map_or(n as u64, |m| m as u64 * cfg.spp.max(1) as u64);
         let gather_samplers = counts
             .iter()

@@ -1,6 +1,8 @@
 //! `final_gather`: `gather_samples` cosine-weighted rays over the hemisphere (points
 //! from the configured sampler, so stratified for `halton`/`hammersley`), each shaded
-//! with a photon-map estimate where it lands; `gather_bounces` levels.
+//! with a photon-map estimate where it lands; `gather_bounces` levels. By default the
+//! first level's rays (and the glossy lobe's) are a pixel's, shared out over its camera
+//! samples ([`super::Gathering`], [`crate::integrator::photon::context::PixelSplit`]).
 //!
 //! The same gather serves `precomputed` (see [`super::precomputed`]): the one
 //! difference is what a gather ray finds where it lands, a full photon estimate here or

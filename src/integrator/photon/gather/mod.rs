@@ -25,14 +25,63 @@ pub const GATHERS: &[&str] = &["direct", "final_gather", "precomputed", "irradia
 crate::params! {
     /// What every gathering plug-in (`final_gather`, `precomputed`, `irradiance_cache`) reads.
     pub struct GatherParams {
-        /// Final-gather rays at the first level (cosine-weighted, points from the configured sampler).
-        gather_samples: u32 = "64",
-        /// Final-gather levels (≥ 1); each deeper level uses 1/8 of the rays of the one above (at least 4).
+        /// Final-gather rays at the first level (cosine-weighted, points from the configured sampler), counted as `gather_per` says; `auto` = 256 a `pixel`, 64 a `sample` (for `irradiance_cache`, whose entries have `ic_samples` rays, the rays at a point no entry covers).
+        gather_samples: Option<u32> = "auto",
+        /// Final-gather levels (≥ 1); each deeper level traces, from every hit of the level above, 1/8 of that level's `gather_samples` (at least 4).
         gather_bounces: u32 = "1",
-        /// Rays drawn from the glossy lobe at glossy gathering points (the diffuse part uses the gather or the cache).
-        glossy_samples: u32 = "16",
-        /// What `gather_samples` and `glossy_samples` count at camera-sample hits: rays per camera `sample`, or per `pixel` (each of the pixel's spp samples traces ⌈count / spp⌉ of one point set stratified over the pixel).
-        gather_per: String = "sample",
+        /// Rays drawn from the glossy lobe at glossy gathering points (the diffuse part uses the gather or the cache), counted as `gather_per` says; `auto` = 64 a `pixel`, 16 a `sample`.
+        glossy_samples: Option<u32> = "auto",
+        /// What `gather_samples` and `glossy_samples` count at camera-sample hits: the rays of a `pixel` (each of its spp samples traces ⌈count / spp⌉ of one point set stratified over the pixel, so the cost per pixel does not depend on spp) or of each camera `sample`; `auto` = `pixel` for `final_gather` and `precomputed`, `sample` for `irradiance_cache`.
+        gather_per: Option<String> = "auto",
+    }
+}
+
+/// Default first-level gather rays per pixel (`gather_per = "pixel"`).
+pub const PIXEL_GATHER_SAMPLES: u32 = 256;
+/// Default glossy-lobe rays per pixel.
+pub const PIXEL_GLOSSY_SAMPLES: u32 = 64;
+/// Default first-level gather rays per camera sample (`gather_per = "sample"`).
+pub const SAMPLE_GATHER_SAMPLES: u32 = 64;
+/// Default glossy-lobe rays per camera sample.
+pub const SAMPLE_GLOSSY_SAMPLES: u32 = 16;
+
+/// The final-gather settings a plug-in uses: [`GatherParams`] with every `auto`
+/// resolved for that plug-in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Gathering {
+    /// First-level gather rays (per pixel when `per_pixel`, else per camera sample).
+    pub gather_samples: u32,
+    /// Final-gather levels.
+    pub gather_bounces: u32,
+    /// Glossy-lobe rays (counted as `gather_samples`).
+    pub glossy_samples: u32,
+    /// `gather_per = "pixel"`.
+    pub per_pixel: bool,
+}
+
+impl Gathering {
+    /// Resolves `p` for plug-in `name`: `final_gather` and `precomputed` count their
+    /// rays per pixel, the irradiance cache per camera sample (its entries, which hold
+    /// most of its gathering, have their own count; a point no entry covers is gathered
+    /// alone, with the full count); counts left `auto` follow what they count.
+    pub fn resolve(name: &str, p: &GatherParams) -> anyhow::Result<Self> {
+        let cache = name == "irradiance_cache";
+        let per = p.gather_per.as_deref().unwrap_or(if cache { "sample" } else { "pixel" });
+        if !GATHER_PER.contains(&per) {
+            anyhow::bail!("gather_per must be one of {}, got `{per}`", GATHER_PER.join(", "));
+        }
+        let (g, s) =
+            if per == "pixel" { (PIXEL_GATHER_SAMPLES, PIXEL_GLOSSY_SAMPLES) } else { (SAMPLE_GATHER_SAMPLES, SAMPLE_GLOSSY_SAMPLES) };
+        let g = Gathering {
+            gather_samples: p.gather_samples.unwrap_or(g),
+            gather_bounces: p.gather_bounces,
+            glossy_samples: p.glossy_samples.unwrap_or(s),
+            per_pixel: per == "pixel",
+        };
+        if g.gather_bounces == 0 || g.gather_samples == 0 || g.glossy_samples == 0 {
+            anyhow::bail!("gather_bounces, gather_samples and glossy_samples must be at least 1");
+        }
+        Ok(g)
     }
 }
 
@@ -43,27 +92,18 @@ pub enum GatherSpec {
     /// `direct`.
     Direct,
     /// `final_gather`.
-    FinalGather(GatherParams),
+    FinalGather(Gathering),
     /// `precomputed`.
-    Precomputed(GatherParams, precomputed::PrecomputedParams),
+    Precomputed(Gathering, precomputed::PrecomputedParams),
     /// `irradiance_cache`.
-    Cache(GatherParams, precomputed::PrecomputedParams, irradiance_cache::CacheSettings),
+    Cache(Gathering, precomputed::PrecomputedParams, irradiance_cache::CacheSettings),
 }
 
 impl GatherSpec {
     /// Reads the parameters of gather `name`.
     pub fn read(name: &str, r: &crate::param::Reader) -> anyhow::Result<Self> {
         r.chose(format!("gather `{name}`"));
-        let g = |r| -> anyhow::Result<GatherParams> {
-            let g = GatherParams::read(r)?;
-            if g.gather_bounces == 0 || g.gather_samples == 0 || g.glossy_samples == 0 {
-                anyhow::bail!("gather_bounces, gather_samples and glossy_samples must be at least 1");
-            }
-            if !GATHER_PER.contains(&g.gather_per.as_str()) {
-                anyhow::bail!("gather_per must be one of {}, got `{}`", GATHER_PER.join(", "), g.gather_per);
-            }
-            Ok(g)
-        };
+        let g = |r| -> anyhow::Result<Gathering> { Gathering::resolve(name, &GatherParams::read(r)?) };
         Ok(match name {
             "direct" => GatherSpec::Direct,
             "final_gather" => GatherSpec::FinalGather(g(r)?),
@@ -87,11 +127,17 @@ impl GatherSpec {
         }
     }
 
-    /// The final-gather settings (defaults for `direct`, which does not gather).
-    pub fn gather_params(&self) -> GatherParams {
+    /// The final-gather settings (for `direct`, which does not gather, the per-sample
+    /// counts its samplers have always been built with).
+    pub fn gather_params(&self) -> Gathering {
         match self {
-            GatherSpec::Direct => GatherParams::default(),
-            GatherSpec::FinalGather(g) | GatherSpec::Precomputed(g, _) | GatherSpec::Cache(g, _, _) => g.clone(),
+            GatherSpec::Direct => Gathering {
+                gather_samples: SAMPLE_GATHER_SAMPLES,
+                gather_bounces: 1,
+                glossy_samples: SAMPLE_GLOSSY_SAMPLES,
+                per_pixel: false,
+            },
+            GatherSpec::FinalGather(g) | GatherSpec::Precomputed(g, _) | GatherSpec::Cache(g, _, _) => *g,
         }
     }
 
