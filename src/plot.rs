@@ -147,7 +147,7 @@ where
                 .background_style(WHITE.mix(0.85))
                 .border_style(BLACK)
                 .label_font(("sans-serif", 13))
-                .position(SeriesLabelPosition::UpperRight)
+                .position(legend_corner(p, bands, (x0, x1), (y0, y1)))
                 .draw()
                 .map_err(|e| anyhow!("{e:?}"))?;
         }};
@@ -160,6 +160,48 @@ where
     }
     root.present().map_err(|e| anyhow!("{e:?}"))?;
     Ok(())
+}
+
+/// The corner of the plot area whose legend box would cover the fewest points of the
+/// lines (segments sampled too), the upper right on a tie.
+fn legend_corner(p: &LinePlot, bands: &[Band], (x0, x1): (f64, f64), (y0, y1): (f64, f64)) -> SeriesLabelPosition {
+    let unit = |v: f64, lo: f64, hi: f64, log: bool| if log { (v.ln() - lo.ln()) / (hi.ln() - lo.ln()) } else { (v - lo) / (hi - lo) };
+    // The box: the longest label's width at ~7 px a character over a ~800-px plot,
+    // 20 px an entry over a ~480-px plot, in units of the plot area.
+    let names = p.series.iter().map(|s| &s.name).chain(bands.iter().map(|b| &b.name));
+    let longest = names.map(|n| n.chars().count()).max().unwrap_or(0) + 8;
+    let (w, h) = ((longest as f64 * 7.0 / 800.0).min(0.9), (((p.series.len() + bands.len()) as f64 * 20.0 + 10.0) / 480.0).min(0.9));
+    let mut pts = Vec::new();
+    for s in &p.series {
+        let q: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .filter(|&&(x, y)| x.is_finite() && y.is_finite() && (!p.log_x || x > 0.0) && (!p.log_y || y > 0.0))
+            .map(|&(x, y)| (unit(x, x0, x1, p.log_x), unit(y, y0, y1, p.log_y)))
+            .collect();
+        for (i, &a) in q.iter().enumerate() {
+            pts.push(a);
+            if let Some(&b) = q.get(i + 1) {
+                pts.extend((1..8).map(|k| (a.0 + (b.0 - a.0) * k as f64 / 8.0, a.1 + (b.1 - a.1) * k as f64 / 8.0)));
+            }
+        }
+    }
+    let corners = [
+        (SeriesLabelPosition::UpperRight, (1.0 - w, 1.0), (1.0 - h, 1.0)),
+        (SeriesLabelPosition::UpperLeft, (0.0, w), (1.0 - h, 1.0)),
+        (SeriesLabelPosition::LowerLeft, (0.0, w), (0.0, h)),
+        (SeriesLabelPosition::LowerRight, (1.0 - w, 1.0), (0.0, h)),
+    ];
+    let covered = |(_, (ua, ub), (va, vb)): &(SeriesLabelPosition, (f64, f64), (f64, f64))| {
+        pts.iter().filter(|&&(u, v)| u >= *ua && u <= *ub && v >= *va && v <= *vb).count()
+    };
+    let mut best = 0;
+    for (i, c) in corners.iter().enumerate() {
+        if covered(c) < covered(&corners[best]) {
+            best = i;
+        }
+    }
+    corners[best].0.clone()
 }
 
 fn draw_bars<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, p: &StackedBars) -> Result<()>
@@ -291,6 +333,25 @@ mod tests {
         let pts: Vec<(f64, f64)> = (1..10).map(|i| (i as f64, 3.0 * (i as f64).powf(-1.5))).collect();
         assert!((log_log_slope(&pts).unwrap() + 1.5).abs() < 1e-9);
         assert!(log_log_slope(&[(1.0, 1.0)]).is_none());
+    }
+
+    #[test]
+    fn legend_goes_where_no_line_is() {
+        let plot = |pts: Vec<(f64, f64)>| LinePlot {
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "y".into(),
+            log_x: false,
+            log_y: false,
+            series: vec![Series { name: "gather=irradiance_cache".into(), points: pts }],
+        };
+        let at = |pts: Vec<(f64, f64)>| format!("{:?}", legend_corner(&plot(pts), &[], (0.0, 1.0), (0.0, 1.0)));
+        // A line falling from the upper left to the lower right: the upper right is free.
+        assert_eq!(at(vec![(0.0, 1.0), (1.0, 0.0)]), "UpperRight");
+        // Points in the upper right corner (as the quick experiment's `direct` cells): elsewhere.
+        assert_ne!(at(vec![(0.9, 0.95), (0.95, 0.9), (0.0, 0.0)]), "UpperRight");
+        // A rising line leaves the upper left free.
+        assert_eq!(at(vec![(0.0, 0.0), (1.0, 1.0)]), "UpperLeft");
     }
 
     #[test]
