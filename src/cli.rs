@@ -59,6 +59,9 @@ pub enum Command {
         /// Markdown tables (docs/plugins.md is this output).
         #[arg(long)]
         markdown: bool,
+        /// One Markdown table row per family with its plug-ins (the README's table is this output).
+        #[arg(long, conflicts_with = "markdown")]
+        glance: bool,
     },
     /// Maintenance: fuzz the scene TOML, OBJ, MTL and manifest readers (no panic, no hang).
     Fuzz(crate::fuzz::FuzzArgs),
@@ -255,9 +258,16 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Merge(a) => crate::experiment::merge_cmd(&a),
         Command::Accumulate { out, parts } => crate::accumulate::accumulate_cmd(&out, &parts),
         Command::Fuzz(a) => crate::fuzz::fuzz_cmd(&a),
-        Command::Plugins { markdown } => {
+        Command::Plugins { markdown, glance } => {
             let cat = crate::registry::catalogue();
-            outln!("{}", if markdown { cat.markdown() } else { cat.text() }.trim_end());
+            let out = if glance {
+                cat.glance()
+            } else if markdown {
+                cat.markdown()
+            } else {
+                cat.text()
+            };
+            outln!("{}", out.trim_end());
             Ok(())
         }
         Command::Diff { test, reference, out, block } => {

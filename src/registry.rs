@@ -226,7 +226,7 @@ pub fn catalogue() -> Catalogue {
                 plugin("bvh4", "A spatial-split SAH tree collapsed to 4-wide SIMD nodes."),
                 plugin(
                     "bvh8",
-                    "The same collapsed to 8-wide nodes (AVX2 traversal; faster than Embree on the same rays, see `bench embree`).",
+                    "The same collapsed to 8-wide nodes (AVX-512, AVX2 or baseline traversal chosen at run time; on par with Embree on the same rays, see `bench embree-compare`).",
                 ),
                 plugin("bvh8q", "`bvh8` with 8-bit quantised child boxes: half the node memory, 0.7–0.9× the speed."),
             ],

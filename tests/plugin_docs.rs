@@ -23,6 +23,22 @@ fn docs_parameter_tables_are_the_generated_ones() {
     );
 }
 
+#[test]
+fn readme_plugin_table_is_the_generated_one() {
+    let out = photonlab(&["plugins", "--glance"]);
+    assert!(out.status.success());
+    let generated = String::from_utf8(out.stdout).unwrap();
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let (begin, end) = ("<!-- glance:begin -->\n", "<!-- glance:end -->");
+    let a = readme.find(begin).expect("README.md has the glance:begin marker") + begin.len();
+    let b = readme.find(end).expect("README.md has the glance:end marker");
+    assert!(
+        readme[a..b].trim_end() == generated.trim_end(),
+        "README.md's plug-in table differs from `photonlab plugins --glance`: regenerate it with\n  \
+         cargo run --release -- plugins --glance\nand paste it between the markers"
+    );
+}
+
 /// Pages other branches add to docs/ (linked from the README and the index before
 /// they land); a link to one of them is only checked once the file exists.
 const PAGES_TO_COME: &[&str] = &[];

@@ -109,6 +109,17 @@ impl Catalogue {
         s
     }
 
+    /// One row per family: its key, what it picks and its plug-ins (the README's
+    /// "plug-ins at a glance", `photonlab plugins --glance`).
+    pub fn glance(&self) -> String {
+        let mut s = String::from("| family (config key) | what it picks | plug-ins |\n|---|---|---|\n");
+        for f in &self.families {
+            let names: Vec<String> = f.plugins.iter().map(|p| format!("`{}`", p.name)).collect();
+            let _ = writeln!(s, "| `{}` | {} | {} |", f.key, f.doc, names.join(", "));
+        }
+        s
+    }
+
     /// The catalogue as plain text.
     pub fn text(&self) -> String {
         let mut s = String::new();
