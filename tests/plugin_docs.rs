@@ -7,36 +7,31 @@ fn photonlab(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_photonlab")).args(args).output().expect("run photonlab")
 }
 
-#[test]
-fn docs_parameter_tables_are_the_generated_ones() {
-    let out = photonlab(&["plugins", "--markdown"]);
+/// The text of `file` between `<!-- NAME:begin -->` and `<!-- NAME:end -->` is the
+/// output of `photonlab plugins FLAG`.
+fn assert_generated_between(file: &str, name: &str, flag: &str) {
+    let out = photonlab(&["plugins", flag]);
     assert!(out.status.success());
     let generated = String::from_utf8(out.stdout).unwrap();
-    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/plugins.md")).unwrap();
-    let (begin, end) = ("<!-- plugins:begin -->\n", "<!-- plugins:end -->");
-    let a = doc.find(begin).expect("docs/plugins.md has the plugins:begin marker") + begin.len();
-    let b = doc.find(end).expect("docs/plugins.md has the plugins:end marker");
+    let doc = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file)).unwrap();
+    let (begin, end) = (format!("<!-- {name}:begin -->\n"), format!("<!-- {name}:end -->"));
+    let a = doc.find(&begin).unwrap_or_else(|| panic!("{file} has the {name}:begin marker")) + begin.len();
+    let b = doc.find(&end).unwrap_or_else(|| panic!("{file} has the {name}:end marker"));
     assert!(
         doc[a..b].trim_end() == generated.trim_end(),
-        "docs/plugins.md differs from `photonlab plugins --markdown`: regenerate it with\n  \
-         cargo run --release -- plugins --markdown\nand paste it between the markers"
+        "{file} differs from `photonlab plugins {flag}`: regenerate it with\n  \
+         cargo run --release -- plugins {flag}\nand paste it between the {name} markers"
     );
 }
 
 #[test]
+fn docs_parameter_tables_are_the_generated_ones() {
+    assert_generated_between("docs/plugins.md", "plugins", "--markdown");
+}
+
+#[test]
 fn readme_plugin_table_is_the_generated_one() {
-    let out = photonlab(&["plugins", "--glance"]);
-    assert!(out.status.success());
-    let generated = String::from_utf8(out.stdout).unwrap();
-    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
-    let (begin, end) = ("<!-- glance:begin -->\n", "<!-- glance:end -->");
-    let a = readme.find(begin).expect("README.md has the glance:begin marker") + begin.len();
-    let b = readme.find(end).expect("README.md has the glance:end marker");
-    assert!(
-        readme[a..b].trim_end() == generated.trim_end(),
-        "README.md's plug-in table differs from `photonlab plugins --glance`: regenerate it with\n  \
-         cargo run --release -- plugins --glance\nand paste it between the markers"
-    );
+    assert_generated_between("README.md", "glance", "--glance");
 }
 
 /// Pages other branches add to docs/ (linked from the README and the index before

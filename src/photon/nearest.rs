@@ -480,13 +480,30 @@ fn floor_i64(x: f32) -> i64 {
 /// Hints the cache to fetch the line holding `x`.
 #[inline(always)]
 pub(crate) fn prefetch<U>(x: &U) {
+    prefetch_byte((x as *const U).cast());
+}
+
+/// Hints the cache to fetch every line `x` spans (values wider than a line, or
+/// straddling two).
+#[inline(always)]
+pub(crate) fn prefetch_all<U>(x: &U) {
+    let p: *const u8 = (x as *const U).cast();
+    let n = std::mem::size_of::<U>();
+    for o in (0..n).step_by(64) {
+        prefetch_byte(p.wrapping_add(o));
+    }
+    prefetch_byte(p.wrapping_add(n.max(1) - 1));
+}
+
+#[inline(always)]
+fn prefetch_byte(p: *const u8) {
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch never faults, and `x` is a valid reference.
+    // SAFETY: a prefetch is a hint that never faults, whatever the address.
     unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((x as *const U).cast())
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
     };
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
+    let _ = p;
 }
 
 /// Bounds of the finite positions `pos(0..n)` (lo > hi when there are none).

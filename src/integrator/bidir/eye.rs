@@ -12,6 +12,7 @@ use super::subpath::{LightVertex, adjoint_cos, scatter};
 use crate::accel::TraversalStats;
 use crate::material::{Bsdf, TransportMode};
 use crate::math::Color;
+use crate::photon::nearest::prefetch_all;
 use crate::sampler::{BOUNCE_LIGHT_SELECT, DIM_PIXEL, Sampler, bounce_dim};
 use crate::world::Interaction;
 use glam::Vec3;
@@ -103,8 +104,7 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
                 s.set_dimension(bounce_dim(len - 1) + BOUNCE_POOL);
                 let u = s.next_1d();
                 for k in 0..ctx.pool_draws.min(4) {
-                    let v: *const LightVertex = &pool.vertices[pool_index(k, u, ctx.pool_draws, pool.vertices.len())];
-                    super::prefetch(v, std::mem::size_of::<LightVertex>());
+                    prefetch_all(&pool.vertices[pool_index(k, u, ctx.pool_draws, pool.vertices.len())]);
                 }
                 u
             }
@@ -368,7 +368,7 @@ fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, 
             if key.p.distance_squared(it.p) > r2 {
                 continue;
             }
-            super::prefetch(&m.vertices[key.index as usize], std::mem::size_of::<LightVertex>());
+            prefetch_all(&m.vertices[key.index as usize]);
             batch[k] = key.index;
             k += 1;
             if k == MERGE_BATCH {

@@ -10,6 +10,7 @@
 //! cell is its hash modulo the point count, taken with Lemire's exact multiply-shift
 //! remainder instead of a division (eight per query).
 
+use crate::photon::nearest::{prefetch, prefetch_all};
 use glam::Vec3;
 use std::ops::Range;
 
@@ -140,14 +141,16 @@ impl HashGrid {
         }
         let buckets = &mut buckets[..n];
         for &bk in buckets.iter() {
-            super::prefetch(&self.starts[bk as usize], 8);
+            prefetch(&self.starts[bk as usize]);
         }
         buckets.sort_unstable();
         // Their keys' first lines too, once the starts are in.
         let mut last = u32::MAX;
         for &bk in buckets.iter() {
-            if bk != last {
-                super::prefetch(self.keys.as_ptr().wrapping_add(self.starts[bk as usize] as usize), 16);
+            if bk != last
+                && let Some(key) = self.keys.get(self.starts[bk as usize] as usize)
+            {
+                prefetch_all(key);
             }
             last = bk;
         }

@@ -45,28 +45,6 @@ crate::params! {
     }
 }
 
-/// Starts fetching the `bytes` bytes at `p` into the cache: a hint that never faults
-/// and changes no result, so that a load expected soon overlaps other work.
-#[inline(always)]
-pub(crate) fn prefetch<T>(p: *const T, bytes: usize) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let p = p as *const i8;
-        let mut o = 0;
-        while o < bytes {
-            // SAFETY: prefetching is a hint that never faults, even out of bounds.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(o)) };
-            o += 64;
-        }
-        // The last line when the bytes straddle one more line than bytes / 64.
-        // SAFETY: as above.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(bytes.max(1) - 1)) };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (p, bytes);
-}
-
 /// Which techniques run (SmallVCM's algorithms).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Mode {
