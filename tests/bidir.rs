@@ -119,7 +119,7 @@ fn vcm_merging_at_the_first_or_every_vertex_agrees_with_path() {
     let img = render("cornell-glass", all(RenderConfig { seed: 38, ..cfg("vcm", 32, 1, 0) }));
     check("vcm all cornell-glass", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
     let reference = render("cornell", cfg("path", 32, 512, 34));
-    let img = render("cornell", first(RenderConfig { seed: 37, ..cfg("vcm", 32, 1, 0) }));
+    let img = render("cornell", first(RenderConfig { seed: 37, ..cfg("vcm", 32, 1, 0) }).with("vcm_select", "off"));
     check("vcm first cornell", &compare_blocks(&img, &reference, 8, 0.005).unwrap());
 }
 
@@ -176,15 +176,42 @@ fn strategy_images_add_up_to_the_image() {
 fn vcm_resumes_bit_identically() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("v.checkpoint.json").to_string_lossy().into_owned();
-    for draws in [0u32, 1] {
+    // `vcm_select = "efficiency"` picks path tracing on this box: its pilot passes are
+    // the first four, so a checkpoint after 2 and one after 6 both resume correctly.
+    for (draws, select, first) in [(0u32, "off", 4), (1, "off", 4), (1, "efficiency", 2), (1, "efficiency", 6)] {
         let c = |passes: u32| {
-            cfg("vcm", 24, 1, 8).with("passes", passes).with("checkpoint_file", file.clone()).with("vcm_connect_draws", draws as i64)
+            cfg("vcm", 24, 1, 8)
+                .with("passes", passes)
+                .with("checkpoint_file", file.clone())
+                .with("vcm_connect_draws", draws as i64)
+                .with("vcm_select", select)
         };
-        let full = render("cornell", c(6));
-        render("cornell", c(4).with("checkpoint_every", 2));
-        let resumed = render("cornell", c(6).with("resume", true));
-        assert!(full.pixels == resumed.pixels, "vcm_connect_draws {draws}");
+        let full = render("cornell", c(8));
+        render("cornell", c(first).with("checkpoint_every", 2));
+        let resumed = render("cornell", c(8).with("resume", true));
+        assert!(full.pixels == resumed.pixels, "vcm_connect_draws {draws}, vcm_select {select}, first run {first} passes");
     }
+}
+
+/// `vcm_select = "efficiency"` (the default) renders the diffuse box by path tracing —
+/// the very image of `path` with as many samples as passes, bit for bit — and the room lit
+/// through a door ajar by the bidirectional pass, the very image of `vcm_select = "off"`;
+/// its pilot's estimates say why (path tracing's relative variance 40× higher there).
+#[test]
+fn vcm_chooses_path_tracing_only_where_it_pays() {
+    let outcome = |scene: &str, c: RenderConfig| render_scene(builtin(scene).unwrap(), &c, true).unwrap();
+    let v = outcome("cornell", cfg("vcm", 32, 1, 3).with("passes", 12));
+    assert_eq!(v.extra["pilot_chose_path"], 1.0);
+    assert_eq!(v.extra["path_tracing_passes"], 12.0);
+    let p = outcome("cornell", cfg("path", 32, 12, 3));
+    assert!(v.film.pixels == p.film.pixels, "vcm's path-tracing passes are not path's samples");
+
+    let v = outcome("door-ajar", cfg("vcm", 32, 1, 3).with("passes", 6));
+    assert_eq!(v.extra["pilot_chose_path"], 0.0);
+    assert!(v.extra["pilot_path_rel_var"] > 10.0 * v.extra["pilot_bidir_rel_var"], "{:?}", v.extra);
+    let off = outcome("door-ajar", cfg("vcm", 32, 1, 3).with("passes", 6).with("vcm_select", "off"));
+    assert!(v.film.pixels == off.film.pixels, "the chosen bidirectional passes differ from vcm_select = off");
+    assert!(!off.extra.contains_key("pilot_chose_path"));
 }
 
 /// Bad settings are named.
@@ -198,6 +225,7 @@ fn bad_settings_are_named() {
     assert!(err(cfg("vcm", 8, 1, 0).with("vcm_light_paths", 0.0)).contains("vcm_light_paths"));
     assert!(err(cfg("vcm", 8, 1, 0).with("vcm_connect_draws", 1000)).contains("vcm_connect_draws"));
     assert!(err(cfg("vcm", 8, 1, 0).with("vcm_merge", "second")).contains("vcm_merge"));
+    assert!(err(cfg("vcm", 8, 1, 0).with("vcm_select", "always")).contains("vcm_select"));
 }
 
 /// An open scene lit only by a constant environment (the Cornell box, ceiling light

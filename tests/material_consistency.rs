@@ -108,7 +108,7 @@ fn cases() -> Vec<(&'static str, RenderConfig, f64)> {
         ("photon gather=precomputed", base("photon", 8, 4).with("photons", 300_000).with("gather", "precomputed"), 0.06),
         ("sppm", base("sppm", 1, 5).with("passes", 32), 0.06),
         ("ppm", base("ppm", 1, 6).with("passes", 8).with("photons", 100_000), 0.08),
-        ("vcm", base("vcm", 1, 7).with("passes", 16), 0.06),
+        ("vcm", base("vcm", 1, 7).with("passes", 16).with("vcm_select", "off"), 0.06),
     ]
 }
 

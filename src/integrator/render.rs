@@ -30,6 +30,58 @@ pub struct RenderStats {
 /// cloned once per tile.
 pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler, spp: u32, quiet: bool) -> (Film, RenderStats) {
     let cam = &world.scene.camera;
+    let (tiles, stats) = trace_tiles(world, integrator, sampler, 0, spp, quiet, false);
+    let mut film = Film::new(cam.width, cam.height);
+    for (t, pixels) in tiles.iter().enumerate() {
+        scatter_tile(&mut film.pixels, cam.width, cam.height, t as u32, pixels);
+    }
+    (film, stats)
+}
+
+/// Samples `first` … `first + count − 1` of every pixel, each its own value (a
+/// non-finite one as 0, counted): sample `first + j` of pixel p at `p · count + j`.
+/// Progressive front ends add them up pass by pass, the per-pixel sums in the order
+/// [`render`] adds them.
+pub fn render_each(
+    world: &World,
+    integrator: &dyn Integrator,
+    sampler: &dyn Sampler,
+    first: u64,
+    count: u32,
+    quiet: bool,
+) -> (Vec<Color>, RenderStats) {
+    let cam = &world.scene.camera;
+    let (w, h) = (cam.width, cam.height);
+    let (tiles, stats) = trace_tiles(world, integrator, sampler, first, count, quiet, true);
+    let mut out = vec![Color::ZERO; (w * h) as usize * count as usize];
+    let tiles_x = w.div_ceil(TILE);
+    for (t, values) in tiles.iter().enumerate() {
+        let (x0, y0) = ((t as u32 % tiles_x) * TILE, (t as u32 / tiles_x) * TILE);
+        let mut k = 0;
+        for y in y0..(y0 + TILE).min(h) {
+            for x in x0..(x0 + TILE).min(w) {
+                let p = (y * w + x) as usize * count as usize;
+                out[p..p + count as usize].copy_from_slice(&values[k..k + count as usize]);
+                k += count as usize;
+            }
+        }
+    }
+    (out, stats)
+}
+
+/// The tiles in parallel: per tile, row-major, each pixel's mean of its `spp` samples
+/// (`each == false`) or the samples themselves.
+#[allow(clippy::too_many_arguments)]
+fn trace_tiles(
+    world: &World,
+    integrator: &dyn Integrator,
+    sampler: &dyn Sampler,
+    first: u64,
+    spp: u32,
+    quiet: bool,
+    each: bool,
+) -> (Vec<Vec<Color>>, RenderStats) {
+    let cam = &world.scene.camera;
     let (w, h) = (cam.width, cam.height);
     let tiles_x = w.div_ceil(TILE);
     let tiles_y = h.div_ceil(TILE);
@@ -47,21 +99,21 @@ pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler,
             let mut any = sampler.to_any();
             let mut stats = TraversalStats::default();
             let mut bad = 0u64;
-            let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+            let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize * if each { spp as usize } else { 1 });
             for y in y0..y1 {
                 for x in x0..x1 {
                     if crate::progress::cancelled() {
                         // Stopped (`progress::cancel`): the pipeline discards the image.
-                        out.push(Color::ZERO);
+                        out.extend(std::iter::repeat_n(Color::ZERO, if each { spp as usize } else { 1 }));
                         continue;
                     }
                     let stream = y as u64 * w as u64 + x as u64;
                     let mut sum = DVec3::ZERO;
-                    for i in 0..spp {
+                    for i in first..first + spp as u64 {
                         let l = match any.as_mut() {
                             Some(a) => {
                                 let u = with_sampler!(&mut *a, s => {
-                                    s.start(stream, i as u64);
+                                    s.start(stream, i);
                                     s.set_dimension(DIM_PIXEL);
                                     s.next_2d()
                                 });
@@ -69,7 +121,7 @@ pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler,
                                 integrator.li_any(world, &ray, a, &mut stats)
                             }
                             None => {
-                                s.start(stream, i as u64);
+                                s.start(stream, i);
                                 s.set_dimension(DIM_PIXEL);
                                 let u = s.next_2d();
                                 let ray = cam.generate_ray(x as f32 + u[0], y as f32 + u[1]);
@@ -81,8 +133,13 @@ pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler,
                         } else {
                             bad += 1;
                         }
+                        if each {
+                            out.push(if is_finite(l) { l } else { Color::ZERO });
+                        }
                     }
-                    out.push((sum / spp as f64).as_vec3());
+                    if !each {
+                        out.push((sum / spp as f64).as_vec3());
+                    }
                 }
             }
             pb.inc(1);
@@ -90,15 +147,15 @@ pub fn render(world: &World, integrator: &dyn Integrator, sampler: &dyn Sampler,
         })
         .collect();
     pb.finish_and_clear();
-    let mut film = Film::new(w, h);
     let mut stats = RenderStats::default();
-    for (t, (pixels, st, bad)) in results.into_iter().enumerate() {
-        scatter_tile(&mut film.pixels, w, h, t as u32, &pixels);
+    let mut tiles = Vec::with_capacity(results.len());
+    for (pixels, st, bad) in results {
+        tiles.push(pixels);
         stats.traversal.add(&st);
         stats.nonfinite_samples += bad;
     }
     stats.seconds = start.elapsed().as_secs_f64();
-    (film, stats)
+    (tiles, stats)
 }
 
 /// Copies the pixels of tile `t` (row-major inside the tile, tiles row-major over the

@@ -238,7 +238,8 @@ fn vcm_rows(w: &World, refs: &[Option<f64>], levels: &[u32], passes: u32) -> Res
         .with("passes", passes)
         .with("alpha", alpha)
         .with("vcm_mode", mode)
-        .with("vcm_radius", RADIUS);
+        .with("vcm_radius", RADIUS)
+        .with("vcm_select", "off");
         let r = crate::param::Reader::new(&cfg.params);
         let mut vcm = crate::integrator::bidir::vcm::VcmIntegrator::new(&cfg, &r, make_rr(&cfg.rr)?, true)?;
         r.finish(|k| Some(format!("another plug-in (`{k}`)")))?;

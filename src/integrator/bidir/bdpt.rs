@@ -48,7 +48,7 @@ impl BdptIntegrator {
         let (mut t_light, mut t_eye, mut vertices) = (0.0, 0.0, 0u64);
         let pb = crate::progress::progress_bar(spp as u64, self.quiet, "bdpt");
         for i in 0..spp {
-            let out = run_pass(&ctx, &cam_sampler, &light_sampler, i as u64, record, &mut grid);
+            let out = run_pass(&ctx, &cam_sampler, &light_sampler, i as u64, record, false, &mut grid);
             for (s, p) in sum.iter_mut().zip(&out.pixels) {
                 *s += *p;
             }

@@ -7,7 +7,9 @@
 use super::Ctx;
 use super::grid::HashGrid;
 use super::lights::{emitter_pdfs, env_radiance, illuminate};
-use super::mis::{Partials, w_to_a, weight_connect, weight_direct, weight_hit, weight_merge};
+use super::mis::{
+    Partials, uni_connect, uni_direct, uni_hit, uni_merge, uni_share, w_to_a, weight_connect, weight_direct, weight_hit, weight_merge,
+};
 use super::subpath::{LightVertex, adjoint_cos, scatter};
 use crate::accel::TraversalStats;
 use crate::material::{Bsdf, TransportMode};
@@ -25,6 +27,10 @@ pub trait Record {
     /// Technique (s light vertices, t camera vertices; s = [`MERGE`] for merging),
     /// its MIS weight and weighted contribution (camera throughput applied).
     fn add(&mut self, s: u32, t: u32, weight: f32, value: Color);
+    /// One contribution `value` of a path and the unidirectional techniques' share of
+    /// its weights ([`super::mis::uni_share`]), for the pilot of `vcm_select`.
+    #[inline]
+    fn moment(&mut self, _value: Color, _uni: f32) {}
 }
 
 /// Records nothing.
@@ -120,6 +126,7 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
                     let v = beta * le * w;
                     l += v;
                     rec.add(0, len + 1, w, v);
+                    rec.moment(v, hit_uni(ctx, len, &partials, Some(da), w));
                 }
             }
             break;
@@ -128,11 +135,13 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
         partials.arrive(ctx.f.h, Some((it.p - prev).length_squared()), wo.dot(it.sp.ng));
         let mat = world.material(&it);
         if it.front && mat.is_emitter() {
-            let w = hit_weight(ctx, len, specular_path, &partials, emitter_pdfs(&world.lights, it.tri, wo));
+            let pdfs = emitter_pdfs(&world.lights, it.tri, wo);
+            let w = hit_weight(ctx, len, specular_path, &partials, pdfs);
             if w > 0.0 {
                 let v = beta * mat.emission * w;
                 l += v;
                 rec.add(0, len + 1, w, v);
+                rec.moment(v, hit_uni(ctx, len, &partials, pdfs.map(|p| p.0), w));
             }
         }
         if mode.lt || len >= ctx.max_len {
@@ -151,11 +160,12 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
                         if v.len + 1 + len > ctx.max_len {
                             continue;
                         }
-                        let (w, c) = connect(ctx, bsdf, &it, wo, &partials, v, stats);
+                        let (w, c, uni) = connect(ctx, bsdf, &it, wo, &partials, v, stats);
                         if w > 0.0 {
                             let c = beta * c * pool.scale;
                             l += c;
                             rec.add(v.len + 1, len + 1, w, c);
+                            rec.moment(c, uni);
                         }
                     }
                 } else {
@@ -163,17 +173,18 @@ pub fn trace_eye<S: Sampler + ?Sized, R: Record>(
                         if v.len + 1 + len > ctx.max_len {
                             break;
                         }
-                        let (w, c) = connect(ctx, bsdf, &it, wo, &partials, v, stats);
+                        let (w, c, uni) = connect(ctx, bsdf, &it, wo, &partials, v, stats);
                         if w > 0.0 {
                             let c = beta * c;
                             l += c;
                             rec.add(v.len + 1, len + 1, w, c);
+                            rec.moment(c, uni);
                         }
                     }
                 }
             }
             if let (true, true, Some(m)) = (mode.merge, partials.merges, merge) {
-                let c = beta * merge_at(ctx, bsdf, &it, wo, &partials, len, m) * ctx.vm_norm;
+                let c = beta * merge_at(ctx, bsdf, &it, wo, &partials, len, m, beta * ctx.vm_norm, rec) * ctx.vm_norm;
                 l += c;
                 rec.add(super::eye::MERGE, len + 1, 1.0, c);
                 if mode.ppm {
@@ -227,6 +238,16 @@ fn hit_weight(ctx: &Ctx, len: u32, specular_path: bool, partials: &Partials, pdf
     }
 }
 
+/// [`uni_share`] of an emitter hit with weight `w` (`direct_pdf_a`: `None` off a light).
+#[inline]
+fn hit_uni(ctx: &Ctx, len: u32, partials: &Partials, direct_pdf_a: Option<f32>, w: f32) -> f32 {
+    match direct_pdf_a {
+        _ if len == 1 => 1.0,
+        Some(da) if ctx.mode.connect => uni_share(w, uni_hit(&ctx.f, partials, da)),
+        _ => w,
+    }
+}
+
 /// Direct light sampling at a camera vertex (s = 1), weighted and with β applied.
 #[allow(clippy::too_many_arguments)]
 fn direct<S: Sampler + ?Sized, R: Record>(
@@ -277,11 +298,12 @@ fn direct<S: Sampler + ?Sized, R: Record>(
         return Color::ZERO;
     }
     rec.add(1, len + 1, w, c);
+    rec.moment(c, uni_share(w, uni_direct(&ctx.f, il.pick, il.direct_pdf_w, il.delta, bsdf_dir)));
     c
 }
 
 /// Connects camera vertex `it` to light vertex `v`: (MIS weight, weighted
-/// contribution without the camera throughput); (0, 0) when blocked or zero.
+/// contribution without the camera throughput, [`uni_share`]); zeros when blocked or zero.
 pub fn connect(
     ctx: &Ctx,
     bsdf: &Bsdf,
@@ -290,8 +312,8 @@ pub fn connect(
     cam: &Partials,
     v: &LightVertex,
     stats: &mut TraversalStats,
-) -> (f32, Color) {
-    let none = (0.0, Color::ZERO);
+) -> (f32, Color, f32) {
+    let none = (0.0, Color::ZERO, 0.0);
     let d = v.it.p - it.p;
     let dist2 = d.length_squared();
     if dist2.is_nan() || dist2 <= 0.0 {
@@ -311,15 +333,9 @@ pub fn connect(
     let (cos_c, cos_l) = (dir.dot(it.sp.ng), dir.dot(v.it.sp.ng));
     let cam_to_light_a = w_to_a(bsdf.pdf(&it.sp, wo, dir), dist2, cos_l);
     let light_to_cam_a = w_to_a(lbsdf.pdf(&v.it.sp, v.w_prev, -dir), dist2, cos_c);
-    let w = weight_connect(
-        &ctx.f,
-        &v.partials,
-        cam,
-        cam_to_light_a,
-        light_to_cam_a,
-        if_used(v.partials.dvc, || lbsdf.pdf(&v.it.sp, -dir, v.w_prev)),
-        if_used(cam.dvc, || bsdf.pdf(&it.sp, dir, wo)),
-    );
+    let light_rev = if_used(v.partials.dvc, || lbsdf.pdf(&v.it.sp, -dir, v.w_prev));
+    let w =
+        weight_connect(&ctx.f, &v.partials, cam, cam_to_light_a, light_to_cam_a, light_rev, if_used(cam.dvc, || bsdf.pdf(&it.sp, dir, wo)));
     let g = dir.dot(it.sp.ns()).abs() * adjoint_cos(&v.it.sp, v.w_prev, -dir) / dist2;
     let c = f_c * f_l * v.throughput * (w * g);
     if c.max_element() <= 0.0 || !crate::math::is_finite(c) {
@@ -328,12 +344,24 @@ pub fn connect(
     if !ctx.world.visible(it, v.it.p, v.it.sp.ng, stats) {
         return none;
     }
-    (w, c)
+    (w, c, uni_share(w, uni_connect(&ctx.f, &v.partials, cam_to_light_a, light_rev)))
 }
 
 /// Σ over the pass's light vertices within the radius of w·f·throughput (before
-/// the camera throughput and the density normalisation 1/(π r² N)).
-fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, len: u32, m: &MergeSet) -> Color {
+/// the camera throughput and the density normalisation 1/(π r² N), whose product is
+/// `scale`); each vertex's term times `scale` is recorded as a [`Record::moment`].
+#[allow(clippy::too_many_arguments)]
+fn merge_at<R: Record>(
+    ctx: &Ctx,
+    bsdf: &Bsdf,
+    it: &Interaction,
+    wo: Vec3,
+    cam: &Partials,
+    len: u32,
+    m: &MergeSet,
+    scale: Color,
+    rec: &mut R,
+) -> Color {
     let r2 = ctx.radius * ctx.radius;
     let n = if wo.dot(it.sp.ng) >= 0.0 { it.sp.ng } else { -it.sp.ng };
     let mut sum = Color::ZERO;
@@ -341,7 +369,7 @@ fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, 
     // is read, in batches, so their loads overlap; the sum runs in the same order.
     let mut batch = [0u32; MERGE_BATCH];
     let mut k = 0;
-    let flush = |batch: &[u32], sum: &mut Color| {
+    let mut flush = |batch: &[u32], sum: &mut Color| {
         for &i in batch {
             let v = &m.vertices[i as usize];
             if v.len + len > ctx.max_len {
@@ -355,12 +383,14 @@ fn merge_at(ctx: &Ctx, bsdf: &Bsdf, it: &Interaction, wo: Vec3, cam: &Partials, 
             if f.max_element() <= 0.0 {
                 continue;
             }
+            let cam_dir = bsdf.pdf(&it.sp, wo, v.w_prev);
             let w = if ctx.mode.ppm {
                 1.0
             } else {
-                weight_merge(&ctx.f, &v.partials, cam, bsdf.pdf(&it.sp, wo, v.w_prev), if_used(cam.dvm, || bsdf.pdf(&it.sp, v.w_prev, wo)))
+                weight_merge(&ctx.f, &v.partials, cam, cam_dir, if_used(cam.dvm, || bsdf.pdf(&it.sp, v.w_prev, wo)))
             };
             *sum += f * v.throughput * w;
+            rec.moment(scale * f * v.throughput * w, uni_share(w, uni_merge(&ctx.f, &v.partials, cam_dir)));
         }
     };
     m.grid.for_each_bucket(it.p, |slots| {

@@ -106,6 +106,11 @@ pub struct Partials {
     /// Always with `vcm_merge = "all"`; with `"first"` only on a camera subpath whose
     /// earlier vertices are all delta (see [`Partials::scatter`]).
     pub merges: bool,
+    /// The part of dVC that stands for the unidirectional techniques (s = 0 and s = 1:
+    /// path tracing's), on a light subpath; 0 on a camera subpath.
+    pub duc: f32,
+    /// The part of dVCM that stands for them (until the light subpath's first scattering).
+    pub dum: f32,
 }
 
 impl Partials {
@@ -115,12 +120,12 @@ impl Partials {
         // Both terms stand for techniques counted 1 (s = 1 and s = 0), not `conn_count`.
         let dvcm = f.h.mis(direct_pdf_a / emission_pdf_w) / f.conn;
         let dvc = if delta { 0.0 } else { f.h.mis(if finite { cos } else { 1.0 } / emission_pdf_w) / f.conn };
-        Partials { dvcm, dvc, dvm: dvc * f.vc_weight, merges: f.merge_all }
+        Partials { dvcm, dvc, dvm: dvc * f.vc_weight, merges: f.merge_all, duc: dvc, dum: dvcm }
     }
 
     /// A camera subpath leaving the eye with direction density `camera_pdf_w`.
     pub fn camera_start(f: &Factors, camera_pdf_w: f32) -> Self {
-        Partials { dvcm: f.h.mis(f.lt_count / camera_pdf_w), dvc: 0.0, dvm: 0.0, merges: true }
+        Partials { dvcm: f.h.mis(f.lt_count / camera_pdf_w), dvc: 0.0, dvm: 0.0, merges: true, duc: 0.0, dum: 0.0 }
     }
 
     /// Completes the update on arriving at a vertex at squared distance `dist2`
@@ -135,6 +140,11 @@ impl Partials {
         self.dvcm /= c;
         self.dvc /= c;
         self.dvm /= c;
+        if let Some(d2) = dist2 {
+            self.dum *= h.mis(d2);
+        }
+        self.dum /= c;
+        self.duc /= c;
     }
 
     /// Update for scattering from the last vertex (eqs. 34–36; specular 53–55): the
@@ -161,6 +171,8 @@ impl Partials {
             self.dvcm = 0.0;
             self.dvc *= h.mis(cos_out.abs());
             self.dvm *= h.mis(cos_out.abs());
+            self.dum = 0.0;
+            self.duc *= h.mis(cos_out.abs());
         } else {
             let g = h.mis(cos_out.abs() / pdf_dir);
             let (dvcm, dvc, dvm) = (self.dvcm, self.dvc, self.dvm);
@@ -169,6 +181,8 @@ impl Partials {
             self.dvm = g * (dvm * h.mis(pdf_rev) + dvcm * f.vc_weight + one);
             self.dvcm = h.mis(1.0 / pdf_dir);
             self.merges = f.merge_all;
+            self.duc = g * (self.duc * h.mis(pdf_rev) + self.dum);
+            self.dum = 0.0;
         }
     }
 
@@ -250,6 +264,48 @@ pub fn weight_merge(f: &Factors, light: &Partials, cam: &Partials, cam_dir: f32,
     let w_light = light.dvcm * f.vc_weight + light.dvm * f.h.mis(cam_dir);
     let w_camera = cam.dvcm * f.vc_weight + cam.dvm * f.h.mis(cam_rev);
     1.0 / (w_light + 1.0 + w_camera)
+}
+
+/// The unidirectional techniques' share of the weights, w₀ + w₁ (s = 0 and s = 1, what
+/// path tracing samples), of a path that technique t sampled with weight `w`, from
+/// `ratio` = Σ over those techniques of mis(p_s) / mis(p_t) (the `uni_*` functions):
+/// exact under the balance heuristic; under the power one the same sums of squares.
+#[inline]
+pub fn uni_share(w: f32, ratio: f32) -> f32 {
+    (w * ratio).clamp(0.0, 1.0)
+}
+
+/// [`uni_share`]'s ratio for a camera path hitting an emitter (s = 0; arguments as
+/// [`weight_hit`]): itself and direct sampling.
+#[inline]
+pub fn uni_hit(f: &Factors, cam: &Partials, direct_pdf_a: f32) -> f32 {
+    1.0 + f.h.mis(direct_pdf_a) * cam.dvcm
+}
+
+/// [`uni_share`]'s ratio for direct sampling (s = 1; arguments as [`weight_direct`]):
+/// itself and the emitter hit.
+#[inline]
+pub fn uni_direct(f: &Factors, pick: f32, direct_pdf_w: f32, delta: bool, bsdf_dir: f32) -> f32 {
+    1.0 + if delta { 0.0 } else { f.h.mis(bsdf_dir / (pick * direct_pdf_w)) }
+}
+
+/// [`uni_share`]'s ratio for an inner connection (arguments as [`weight_connect`]).
+#[inline]
+pub fn uni_connect(f: &Factors, light: &Partials, cam_to_light_a: f32, light_rev: f32) -> f32 {
+    f.h.mis(cam_to_light_a) * (light.dum + light.duc * f.h.mis(light_rev))
+}
+
+/// [`uni_share`]'s ratio for light tracing (arguments as [`weight_camera`]).
+#[inline]
+pub fn uni_camera(f: &Factors, light: &Partials, camera_pdf_a: f32, bsdf_rev: f32) -> f32 {
+    f.h.mis(camera_pdf_a / f.lt_count) * (light.dum + light.duc * f.h.mis(bsdf_rev))
+}
+
+/// [`uni_share`]'s ratio for merging (arguments as [`weight_merge`]; dVM's share of
+/// the unidirectional techniques is vc_weight times dVC's).
+#[inline]
+pub fn uni_merge(f: &Factors, light: &Partials, cam_dir: f32) -> f32 {
+    f.vc_weight * (light.dum + light.duc * f.h.mis(cam_dir))
 }
 
 /// Converts a solid-angle density at one vertex into an area density at the other

@@ -9,7 +9,10 @@
 //! technique samples through them with the same delta factor, taken as 1 in both
 //! directions (the partials' specular update).
 
-use super::mis::{Factors, Heuristic, Partials, w_to_a, weight_camera, weight_connect, weight_direct, weight_hit, weight_merge};
+use super::mis::{
+    Factors, Heuristic, Partials, uni_camera, uni_connect, uni_direct, uni_hit, uni_merge, uni_share, w_to_a, weight_camera,
+    weight_connect, weight_direct, weight_hit, weight_merge,
+};
 use crate::camera::Camera;
 use crate::material::{Bsdf, Glossy, Lambertian, ShadingPoint};
 use crate::math::Color;
@@ -297,4 +300,68 @@ fn planted_wrong_reverse_density_breaks_the_sum() {
             }
         }
     }
+}
+
+/// The unidirectional share w₀ + w₁ (`uni_*` of [`super::mis`]) of each technique's
+/// sample, same order as [`recursive`] (`plant`: dVC's share left out of a connection's).
+fn recursive_uni(p: &Path, f: &Factors, merge: bool, plant: bool) -> Vec<f32> {
+    let k = p.k();
+    let w = recursive(p, f, merge, false);
+    let mut r = Vec::new();
+    r.push(uni_hit(f, &camera_partials(p, f, 0), p.pick / p.area));
+    let direct_pdf_w = p.d2(0, 1) / (p.cos(0, 1) * p.area);
+    r.push(uni_direct(f, p.pick, direct_pdf_w, false, p.pdf(1, 2, 0)));
+    for s in 2..k {
+        let l = light_partials(p, f, s - 1);
+        let cam_to_light_a = w_to_a(p.pdf(s, s + 1, s - 1), p.d2(s - 1, s), p.cos(s - 1, s));
+        let rev = if plant { 0.0 } else { p.pdf(s - 1, s, s - 2) };
+        r.push(uni_connect(f, &l, cam_to_light_a, rev));
+    }
+    let l = light_partials(p, f, k - 1);
+    let camera_pdf_a = p.cam.pdf_dir(p.x[k - 1] - p.cam.eye) * p.cos(k - 1, k) / p.d2(k - 1, k);
+    r.push(uni_camera(f, &l, camera_pdf_a, p.pdf(k - 1, k, k - 2)));
+    if merge {
+        for j in 1..k {
+            r.push(uni_merge(f, &light_partials(p, f, j), p.pdf(j, j + 1, j - 1)));
+        }
+    }
+    w.iter().zip(&r).map(|(&w, &r)| uni_share(w, r)).collect()
+}
+
+/// Largest |unidirectional share − (p₀ + p₁)/Σ p| over the techniques that can sample
+/// random paths (balance heuristic).
+fn check_uni(merge: bool, first: bool, plant: bool, n_light: f32, conn: f32, specular: f32) -> f32 {
+    let mut rng = Rng(0x0E1 + merge as u64);
+    let r = 0.01;
+    let f = Factors::new(Heuristic::Balance, true, merge, !first, r, n_light, conn);
+    let eta = PI * r * r * n_light;
+    let mut worst = 0.0f32;
+    for t in 0..2000 {
+        let p = random_path(&mut rng, 3 + t % 5, specular);
+        let q = brute(&p, merge, first, eta, n_light, conn);
+        let total: f64 = q.iter().map(|&v| v as f64).sum();
+        let want = ((q[0] as f64 + q[1] as f64) / total) as f32;
+        let w = recursive(&p, &f, merge, false);
+        for (wi, ui) in w.iter().zip(recursive_uni(&p, &f, merge, plant)) {
+            if *wi > 1e-4 {
+                worst = worst.max((ui - want).abs() / want.max(1e-3));
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn unidirectional_share_equals_the_heuristics() {
+    for (merge, first) in [(false, false), (true, false), (true, true)] {
+        for (n_light, conn) in COUNTS {
+            for specular in [0.0, 0.35] {
+                let e = check_uni(merge, first, false, n_light, conn, specular);
+                assert!(e < 5e-3, "merge {merge} (first {first}), {n_light} light paths, ×{conn}, specular {specular}: relative error {e}");
+            }
+        }
+    }
+    // Planted: a connection's share without dVC's part (the emitter hit's term).
+    let e = check_uni(true, true, true, COUNTS[0].0, COUNTS[0].1, 0.0);
+    assert!(e > 0.1, "planted error not caught: {e}");
 }

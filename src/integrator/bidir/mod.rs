@@ -26,6 +26,7 @@ pub mod grid;
 pub mod lights;
 pub mod mis;
 pub mod pass;
+pub mod select;
 pub mod strategies;
 pub mod subpath;
 pub mod vcm;

@@ -43,11 +43,15 @@ pub struct Item {
     pub value: Color,
 }
 
-/// Collects items of a row when on.
+/// Collects items of a row when on, and the row's moments when `moments` is not empty.
 struct RowRecord {
     on: bool,
     pixel: u32,
     items: Vec<Item>,
+    /// Column of the current pixel.
+    x: usize,
+    /// Per pixel of the row: see [`PassOut::moments`].
+    moments: Vec<(DVec3, DVec3)>,
 }
 
 impl Record for RowRecord {
@@ -57,6 +61,21 @@ impl Record for RowRecord {
             self.items.push(Item { pixel: self.pixel, s, t, weight, value });
         }
     }
+    #[inline]
+    fn moment(&mut self, value: Color, uni: f32) {
+        if let Some(m) = self.moments.get_mut(self.x) {
+            add_moment(m, value, uni);
+        }
+    }
+}
+
+/// Adds a contribution's square and its square over the unidirectional share (a
+/// share of 0, a path that path tracing cannot sample, counts 10⁹ times).
+#[inline]
+fn add_moment(m: &mut (DVec3, DVec3), value: Color, uni: f32) {
+    let v = value.as_dvec3();
+    m.0 += v * v;
+    m.1 += v * v / (uni as f64).max(1e-9);
 }
 
 /// A pass's image (radiance per pixel, f64) and counters.
@@ -78,7 +97,16 @@ pub struct PassOut {
     pub t_eye: f64,
     /// Technique contributions, when recorded.
     pub items: Vec<Item>,
+    /// With `moments`, per pixel: Σ C² over the pass's contributions C to the pixel, and
+    /// Σ C² / (w₀ + w₁), the unidirectional techniques' share of each one's weights —
+    /// estimates of the second moments, without the terms between contributions, of
+    /// this combination and of path tracing's (under the balance heuristic
+    /// ∫ f²/Σₜpₜ and ∫ f²/(p₀ + p₁), estimated by Σ C · f/Σₜpₜ = Σ C² and Σ C² Σₜpₜ/(p₀ + p₁)).
+    pub moments: Vec<(DVec3, DVec3)>,
 }
+
+/// A row of the camera phase: pixels, counters, non-finite samples, items, moments.
+type EyeRow = (Vec<DVec3>, TraversalStats, u64, Vec<Item>, Vec<(DVec3, DVec3)>);
 
 struct LightChunk {
     vertices: Vec<LightVertex>,
@@ -89,8 +117,17 @@ struct LightChunk {
 }
 
 /// Runs pass `index` (the sample index of every camera and light stream), merging
-/// through `grid` (rebuilt here when merging; its buffers kept for the next pass).
-pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler, index: u64, record: bool, grid: &mut HashGrid) -> PassOut {
+/// through `grid` (rebuilt here when merging; its buffers kept for the next pass);
+/// `record`: the items, `moments`: [`PassOut::moments`].
+pub fn run_pass(
+    ctx: &Ctx,
+    cam_sampler: &AnySampler,
+    light_sampler: &AnySampler,
+    index: u64,
+    record: bool,
+    moments: bool,
+    grid: &mut HashGrid,
+) -> PassOut {
     let cam = &ctx.world.scene.camera;
     let (w, h) = (cam.width, cam.height);
     let n_light = ctx.light_paths;
@@ -145,7 +182,7 @@ pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler,
         .then(|| Pool { vertices: &all, scale: all.len() as f32 / (ctx.pool_draws as f32 * ctx.light_paths as f32) });
     out.t_grid = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
-    let eye_rows: Vec<(Vec<DVec3>, TraversalStats, u64, Vec<Item>)> = (0..h)
+    let eye_rows: Vec<EyeRow> = (0..h)
         .into_par_iter()
         .with_max_len(1)
         .map_init(
@@ -153,11 +190,13 @@ pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler,
             |s, y| {
                 let mut st = TraversalStats::default();
                 let mut bad = 0u64;
-                let mut rec = RowRecord { on: record, pixel: 0, items: Vec::new() };
+                let row_moments = if moments { vec![Default::default(); w as usize] } else { Vec::new() };
+                let mut rec = RowRecord { on: record, pixel: 0, items: Vec::new(), x: 0, moments: row_moments };
                 let mut px = Vec::with_capacity(w as usize);
                 crate::sampler::with_sampler!(&mut *s, s => {
                     for x in 0..w {
                         rec.pixel = y * w + x;
+                        rec.x = x as usize;
                         let path = light_path(rec.pixel % n_light);
                         let l = trace_eye(ctx, s, x, y, index, path, pool.as_ref(), merge.as_ref(), &mut rec, &mut st);
                         if is_finite(l) {
@@ -168,13 +207,14 @@ pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler,
                         }
                     }
                 });
-                (px, st, bad, rec.items)
+                (px, st, bad, rec.items, rec.moments)
             },
         )
         .collect();
     let mut pixels = Vec::with_capacity((w * h) as usize);
-    for (px, st, bad, items) in eye_rows {
+    for (px, st, bad, items, m) in eye_rows {
         pixels.extend(px);
+        out.moments.extend(m);
         out.traversal.add(&st);
         out.nonfinite += bad;
         out.items.extend(items);
@@ -184,6 +224,9 @@ pub fn run_pass(ctx: &Ctx, cam_sampler: &AnySampler, light_sampler: &AnySampler,
         for sp in &r.splats {
             if is_finite(sp.value) {
                 pixels[sp.pixel as usize] += sp.value.as_dvec3();
+                if let Some(m) = out.moments.get_mut(sp.pixel as usize) {
+                    add_moment(m, sp.value, sp.uni);
+                }
                 if record {
                     out.items.push(Item { pixel: sp.pixel, s: sp.s, t: 1, weight: sp.weight, value: sp.value });
                 }

@@ -41,6 +41,8 @@ pub struct Splat {
     pub weight: f32,
     /// Weighted contribution (already divided by the number of light subpaths).
     pub value: Color,
+    /// The unidirectional techniques' share of the path's weights ([`super::mis::uni_share`]).
+    pub uni: f32,
 }
 
 /// pbrt's correction for shading normals on light subpaths (Veach 1997, §5.3): the
@@ -177,11 +179,8 @@ fn connect_to_camera(ctx: &Ctx, bsdf: &Bsdf, v: &LightVertex, splats: &mut Vec<S
     let inv_d2 = 1.0 / (k.dist * k.dist);
     // Area density of this vertex when sampled from the eye.
     let camera_pdf_a = k.pdf_dir * cos_g * inv_d2;
-    let weight = if ctx.mode.lt {
-        1.0
-    } else {
-        weight_camera(&ctx.f, &v.partials, camera_pdf_a, super::eye::if_used(v.partials.dvc, || bsdf.pdf(&v.it.sp, k.to_eye, v.w_prev)))
-    };
+    let bsdf_rev = super::eye::if_used(v.partials.dvc, || bsdf.pdf(&v.it.sp, k.to_eye, v.w_prev));
+    let weight = if ctx.mode.lt { 1.0 } else { weight_camera(&ctx.f, &v.partials, camera_pdf_a, bsdf_rev) };
     let value = v.throughput * f * (weight * adjoint_cos(&v.it.sp, v.w_prev, k.to_eye) * k.pdf_dir * inv_d2 / ctx.f.light_paths);
     if value.max_element() <= 0.0 || !crate::math::is_finite(value) {
         return;
@@ -191,5 +190,6 @@ fn connect_to_camera(ctx: &Ctx, bsdf: &Bsdf, v: &LightVertex, splats: &mut Vec<S
     }
     let (x, y) = (k.raster.0 as u32, k.raster.1 as u32);
     let pixel = y.min(cam.height - 1) * cam.width + x.min(cam.width - 1);
-    splats.push(Splat { pixel, s: v.len + 1, weight, value });
+    let uni = super::mis::uni_share(weight, super::mis::uni_camera(&ctx.f, &v.partials, camera_pdf_a, bsdf_rev));
+    splats.push(Splat { pixel, s: v.len + 1, weight, value, uni });
 }

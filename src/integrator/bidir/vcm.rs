@@ -10,20 +10,24 @@
 //! one — with `vcm_light_paths = 1`, `vcm_connect_draws = 0` SmallVCM's pass). `vcm_mode` restricts
 //! the techniques for ablations (SmallVCM's algorithms): `bpt` connections only, `ppm`
 //! merging at the first non-delta camera vertex only (no MIS), `lt` light tracing only.
+//! With `vcm_mode = "vcm"`, `vcm_select = "efficiency"` (the default) chooses per scene
+//! between that pass and path tracing from a pilot ([`super::select`]).
 
 use super::mis::Heuristic;
 use super::pass::run_pass;
+use super::select;
 use super::strategies::Strategies;
 use super::{BidirParams, Ctx, Mode};
 use crate::config::RenderConfig;
 use crate::film::Film;
+use crate::integrator::path::PathIntegrator;
 use crate::integrator::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, save_checkpoint};
-use crate::integrator::render::RenderStats;
+use crate::integrator::render::{RenderStats, render_each};
 use crate::rr::RussianRoulette;
 use crate::world::World;
 use anyhow::{Result, bail};
 use glam::DVec3;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
 /// α when `alpha` is not set (SmallVCM's default).
 pub const DEFAULT_ALPHA: f32 = 0.75;
@@ -43,8 +47,16 @@ crate::params! {
         vcm_connect_draws: u32 = "1",
         /// Camera vertices merged with the pass's light vertices: the `first` non-delta one only (the MIS weights count merging only there) or `all` non-delta ones (SmallVCM).
         vcm_merge: String = "first",
+        /// Technique set per scene (with `vcm_mode = "vcm"`): `efficiency` runs 4 pilot passes of the bidirectional pass and of path tracing (`path`'s estimator, one sample per pixel a pass) and renders with the one of lower relative variance × counted work per pass (Grittmann et al. 2022); `off`: always the bidirectional pass.
+        vcm_select: String = "efficiency",
     }
 }
+
+/// Path-tracing passes are traced in batches of at most this many samples over the image
+/// (the samples of all of them kept until they are added pass by pass)…
+const PATH_BATCH_SAMPLES: usize = 1 << 20;
+/// … and at most this many passes.
+const PATH_BATCH_PASSES: u32 = 16;
 
 /// Light subpaths of the pilot that measures light vertices per subpath.
 const PILOT_PATHS: u64 = 4096;
@@ -62,6 +74,8 @@ pub struct VcmIntegrator {
     alpha: f32,
     prog: ProgressiveParams,
     rr: Box<dyn RussianRoulette>,
+    /// Path tracing, the other candidate of `vcm_select = "efficiency"` (`None`: off).
+    path: Option<PathIntegrator>,
     quiet: bool,
     counters: BTreeMap<String, f64>,
 }
@@ -87,16 +101,26 @@ impl VcmIntegrator {
             bail!("vcm_light_paths must be in (0, 64] (a fraction of the pixel count), got {}", p.vcm_light_paths);
         }
         let alpha = if cfg.params.contains("alpha") { prog.alpha } else { DEFAULT_ALPHA };
+        let mode = Mode::parse(&p.vcm_mode)?.with_merge(&p.vcm_merge)?;
+        let path = match p.vcm_select.as_str() {
+            // `path`'s own roulette when `rr` is `auto`.
+            "efficiency" if p.vcm_mode == "vcm" => {
+                Some(PathIntegrator { max_depth: cfg.depth_limit(), rr: crate::rr::make_for(&cfg.rr, "path")?, output: Default::default() })
+            }
+            "efficiency" | "off" => None,
+            other => bail!("unknown vcm_select `{other}` (known: efficiency, off)"),
+        };
         Ok(VcmIntegrator {
             cfg: cfg.clone(),
             h: Heuristic::parse(&b.bdpt_mis)?,
-            mode: Mode::parse(&p.vcm_mode)?.with_merge(&p.vcm_merge)?,
+            mode,
             radius: p.vcm_radius,
             light_fraction: p.vcm_light_paths,
             draws: p.vcm_connect_draws,
             alpha,
             prog,
             rr,
+            path,
             quiet,
             counters: BTreeMap::new(),
         })
@@ -136,9 +160,64 @@ impl VcmIntegrator {
         let cam_sampler = crate::sampler::make_any(&self.cfg.sampler, self.cfg.seed, counts)?;
         let light_paths = ((npix as f64 * self.light_fraction as f64).round() as u64).clamp(1, u32::MAX as u64 / 2) as u32;
         let light_sampler = cam_sampler.clone();
+        let path_sampler = cam_sampler.clone().boxed();
         let mut grid = super::grid::HashGrid::default();
         let r0 = self.radius.unwrap_or(DEFAULT_RADIUS_FRACTION * world.lights.scene_radius);
         let joins = (self.draws > 0 && self.mode.connect).then(|| (self.draws, self.light_vertices_per_path(world, &light_sampler, r0)));
+        let mut stats = RenderStats::default();
+        let mut strategies = Strategies::default();
+        let mut times = PhaseTimes::default();
+        let (h_mis, mode, alpha, depth, rr) = (self.h, self.mode, self.alpha, self.cfg.depth_limit(), self.rr.as_ref());
+        // One pass of the bidirectional estimator, its counters added up.
+        let mut bidir_pass = |pass: u32, moments: bool, stats: &mut RenderStats, strategies: &mut Strategies, times: &mut PhaseTimes| {
+            let r = Self::radius(r0, alpha, pass + 1);
+            let ctx = Ctx::new(world, h_mis, mode, depth, rr, r, light_paths, joins);
+            let out = run_pass(&ctx, &cam_sampler, &light_sampler, pass as u64, record, moments, &mut grid);
+            stats.traversal.add(&out.traversal);
+            stats.nonfinite_samples += out.nonfinite;
+            times.add(&out);
+            strategies.add(&out.items, npix);
+            (out.pixels, out.moments)
+        };
+        // Passes `first` … `first + count − 1` of path tracing (their sample index of
+        // every pixel), traced in one go: one parallel loop, each pixel's samples in a row.
+        let path_passes = |path: &PathIntegrator, first: u32, count: u32, stats: &mut RenderStats| {
+            let (each, st) = render_each(world, path, path_sampler.as_ref(), first as u64, count, true);
+            stats.traversal.add(&st.traversal);
+            stats.nonfinite_samples += st.nonfinite_samples;
+            let k = count as usize;
+            (0..k).map(|j| (0..npix).map(|p| each[p * k + j].as_dvec3()).collect::<Vec<DVec3>>()).collect::<VecDeque<_>>()
+        };
+        let batch = (PATH_BATCH_SAMPLES / npix.max(1)).clamp(1, PATH_BATCH_PASSES as usize) as u32;
+        // The pilot (unless recording the bidirectional techniques): the chosen
+        // candidate's first passes, and whether it is path tracing.
+        let mut ahead: VecDeque<Vec<DVec3>> = VecDeque::new();
+        let mut use_path = None;
+        if let Some(path) = self.path.as_ref().filter(|_| !record) {
+            let (mut b, mut moments) = (VecDeque::new(), Vec::new());
+            for i in 0..select::PILOT_PASSES {
+                let (px, m) = bidir_pass(i, true, &mut stats, &mut strategies, &mut times);
+                b.push_back(px);
+                moments.push(m);
+            }
+            let b_rays = stats.traversal.total_rays();
+            let mut p = path_passes(path, 0, select::PILOT_PASSES, &mut stats);
+            let p_rays = stats.traversal.total_rays() - b_rays;
+            let pilot = select::Pilot::new(b.make_contiguous(), &moments, b_rays, p.make_contiguous(), p_rays);
+            let c = &mut self.counters;
+            c.insert("pilot_bidir_rel_var".into(), pilot.bidir.rel_var);
+            c.insert("pilot_path_rel_var".into(), pilot.path.rel_var);
+            c.insert("pilot_bidir_rays_per_pass".into(), pilot.bidir.rays_per_pass);
+            c.insert("pilot_path_rays_per_pass".into(), pilot.path.rays_per_pass);
+            c.insert("pilot_chose_path".into(), pilot.prefers_path() as u8 as f64);
+            c.insert("pilot_advantage".into(), pilot.advantage());
+            if pilot.prefers_path() {
+                ahead = p;
+                use_path = Some(path);
+            } else {
+                ahead = b;
+            }
+        }
         let mut sum = vec![DVec3::ZERO; npix];
         let mut pass = 0u32;
         let mut film = Film::new(w, h);
@@ -150,22 +229,25 @@ impl VcmIntegrator {
             pass = done;
             film.pixels = sum.iter().map(|s| (*s / pass.max(1) as f64).as_vec3()).collect();
         }
-        let mut stats = RenderStats::default();
-        let mut strategies = Strategies::default();
-        let (mut t_light, mut t_grid, mut t_eye, mut vertices, mut run) = (0.0, 0.0, 0.0, 0u64, 0u32);
+        let mut run = 0u32;
+        // Passes `ahead_first` … are in `ahead`.
+        let mut ahead_first = 0u32;
         let pb = crate::progress::progress_bar(counts.unwrap_or(0), self.quiet, "vcm");
         while budget.more(pass) {
-            let r = Self::radius(r0, self.alpha, pass + 1);
-            let ctx = Ctx::new(world, self.h, self.mode, self.cfg.depth_limit(), self.rr.as_ref(), r, light_paths, joins);
-            let out = run_pass(&ctx, &cam_sampler, &light_sampler, pass as u64, record, &mut grid);
-            for (s, p) in sum.iter_mut().zip(&out.pixels) {
+            if let Some(path) = use_path
+                && !(ahead_first..ahead_first + ahead.len() as u32).contains(&pass)
+            {
+                ahead = path_passes(path, pass, batch.min(budget.max_passes.saturating_sub(pass)).max(1), &mut stats);
+                ahead_first = pass;
+            }
+            let pixels = if let Some(px) = pass.checked_sub(ahead_first).and_then(|i| ahead.get_mut(i as usize)) {
+                std::mem::take(px)
+            } else {
+                bidir_pass(pass, false, &mut stats, &mut strategies, &mut times).0
+            };
+            for (s, p) in sum.iter_mut().zip(&pixels) {
                 *s += *p;
             }
-            stats.traversal.add(&out.traversal);
-            stats.nonfinite_samples += out.nonfinite;
-            (t_light, t_grid, t_eye, vertices) =
-                (t_light + out.t_light, t_grid + out.t_grid, t_eye + out.t_eye, vertices + out.light_vertices);
-            strategies.add(&out.items, npix);
             pass += 1;
             run += 1;
             pb.inc(1);
@@ -184,23 +266,46 @@ impl VcmIntegrator {
         pb.finish_and_clear();
         stats.seconds = budget.elapsed();
         let threads = rayon::current_num_threads() as f64;
-        let paths = run as f64 * npix as f64;
-        let lpaths = run as f64 * light_paths as f64;
+        // Bidirectional passes traced (the pilot's included).
+        let bpasses = times.passes;
         let c = &mut self.counters;
         c.insert("passes".into(), pass as f64);
-        c.insert("light_phase_s".into(), t_light);
-        c.insert("grid_s".into(), t_grid);
-        c.insert("camera_phase_s".into(), t_eye);
-        c.insert("light_vertices".into(), vertices as f64);
+        c.insert("path_tracing_passes".into(), if use_path.is_some() { run as f64 } else { 0.0 });
+        c.insert("light_phase_s".into(), times.light);
+        c.insert("grid_s".into(), times.grid);
+        c.insert("camera_phase_s".into(), times.eye);
+        c.insert("light_vertices".into(), times.vertices as f64);
         c.insert("final_radius".into(), Self::radius(r0, self.alpha, pass.max(1)) as f64);
         c.insert("light_subpaths_per_pass".into(), light_paths as f64);
         if let Some((_, lbar)) = joins {
             c.insert("pilot_light_vertices_per_subpath".into(), lbar as f64);
         }
-        c.insert("light_subpaths_per_s_per_thread".into(), lpaths / t_light.max(1e-9) / threads);
-        c.insert("camera_subpaths_per_s_per_thread".into(), paths / t_eye.max(1e-9) / threads);
+        if bpasses > 0 {
+            c.insert("light_subpaths_per_s_per_thread".into(), bpasses as f64 * light_paths as f64 / times.light.max(1e-9) / threads);
+            c.insert("camera_subpaths_per_s_per_thread".into(), bpasses as f64 * npix as f64 / times.eye.max(1e-9) / threads);
+        }
         c.insert("passes_per_s".into(), run as f64 / stats.seconds.max(1e-9));
         Ok((film, stats, strategies, pass))
+    }
+}
+
+/// Seconds in the phases of the bidirectional passes, and light vertices stored.
+#[derive(Default)]
+struct PhaseTimes {
+    light: f64,
+    grid: f64,
+    eye: f64,
+    vertices: u64,
+    passes: u64,
+}
+
+impl PhaseTimes {
+    fn add(&mut self, out: &super::pass::PassOut) {
+        self.light += out.t_light;
+        self.grid += out.t_grid;
+        self.eye += out.t_eye;
+        self.vertices += out.light_vertices;
+        self.passes += 1;
     }
 }
 
