@@ -30,7 +30,7 @@ use glam::DVec3;
 const REL_EPS: f64 = 1e-2;
 
 /// Pilot passes of each candidate.
-pub const PILOT_PASSES: u32 = 4;
+pub const PILOT_PASSES: u32 = 2;
 
 /// CPU time per ray of a bidirectional pass relative to a path-tracing pass's: the light
 /// vertices, connections' BSDF evaluations, merges and light-tracing splats that come with
@@ -64,6 +64,8 @@ pub struct Pilot {
     pub bidir: Candidate,
     /// Path tracing.
     pub path: Candidate,
+    /// Path tracing's relative variance from its own pilot passes alone.
+    pub path_own_rel_var: f64,
 }
 
 impl Pilot {
@@ -72,7 +74,7 @@ impl Pilot {
     pub fn new(bidir: &[Vec<DVec3>], moments: &[Vec<(DVec3, DVec3)>], bidir_rays: u64, path: &[Vec<DVec3>], path_rays: u64) -> Self {
         let mean = pooled_mean(bidir, path);
         let n = mean.len();
-        let (mut vb, mut vp) = (0.0, 0.0);
+        let (mut vb, mut vp, mut vo) = (0.0, 0.0, 0.0);
         for (p, m) in mean.iter().enumerate() {
             let norm = *m * *m + DVec3::splat(REL_EPS);
             let sb = sample_variance(bidir, p);
@@ -83,12 +85,17 @@ impl Pilot {
             let model = (m1 - *m * *m).max(DVec3::ZERO);
             vb += (sb / norm).element_sum() / 3.0;
             vp += (sp.max(model) / norm).element_sum() / 3.0;
+            vo += (sp / norm).element_sum() / 3.0;
         }
         let cand = |k: usize, rel_var: f64, rays: u64, weight: f64| {
             let per = rays as f64 / k.max(1) as f64;
             Candidate { rel_var: rel_var / n.max(1) as f64, rays_per_pass: per, cost: per * weight }
         };
-        Pilot { bidir: cand(bidir.len(), vb, bidir_rays, BIDIR_RAY_COST), path: cand(path.len(), vp, path_rays, 1.0) }
+        Pilot {
+            bidir: cand(bidir.len(), vb, bidir_rays, BIDIR_RAY_COST),
+            path: cand(path.len(), vp, path_rays, 1.0),
+            path_own_rel_var: vo / n.max(1) as f64,
+        }
     }
 
     /// Whether path tracing reaches a given error at less cost (ties: bidirectional).

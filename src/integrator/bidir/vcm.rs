@@ -47,7 +47,7 @@ crate::params! {
         vcm_connect_draws: u32 = "1",
         /// Camera vertices merged with the pass's light vertices: the `first` non-delta one only (the MIS weights count merging only there) or `all` non-delta ones (SmallVCM).
         vcm_merge: String = "first",
-        /// Technique set per scene (with `vcm_mode = "vcm"`): `efficiency` runs 4 pilot passes of the bidirectional pass and of path tracing (`path`'s estimator, one sample per pixel a pass) and renders with the one of lower relative variance × counted work per pass (Grittmann et al. 2022); `off`: always the bidirectional pass.
+        /// Technique set per scene (with `vcm_mode = "vcm"`): `efficiency` runs 2 pilot passes of the bidirectional pass and of path tracing (`path`'s estimator, one sample per pixel a pass) and renders with the one of lower relative variance × counted work per pass (Grittmann et al. 2022); `off`: always the bidirectional pass.
         vcm_select: String = "efficiency",
     }
 }
@@ -207,6 +207,7 @@ impl VcmIntegrator {
             let c = &mut self.counters;
             c.insert("pilot_bidir_rel_var".into(), pilot.bidir.rel_var);
             c.insert("pilot_path_rel_var".into(), pilot.path.rel_var);
+            c.insert("pilot_path_own_rel_var".into(), pilot.path_own_rel_var);
             c.insert("pilot_bidir_rays_per_pass".into(), pilot.bidir.rays_per_pass);
             c.insert("pilot_path_rays_per_pass".into(), pilot.path.rays_per_pass);
             c.insert("pilot_chose_path".into(), pilot.prefers_path() as u8 as f64);
@@ -237,7 +238,10 @@ impl VcmIntegrator {
             if let Some(path) = use_path
                 && !(ahead_first..ahead_first + ahead.len() as u32).contains(&pass)
             {
-                ahead = path_passes(path, pass, batch.min(budget.max_passes.saturating_sub(pass)).max(1), &mut stats);
+                // Batches grow with the pass count (2, 4, 8, … up to `batch`), so the
+                // images after 2ᵏ passes come as soon as those passes are done.
+                let count = batch.min(pass.max(1)).min(budget.max_passes.saturating_sub(pass)).max(1);
+                ahead = path_passes(path, pass, count, &mut stats);
                 ahead_first = pass;
             }
             let pixels = if let Some(px) = pass.checked_sub(ahead_first).and_then(|i| ahead.get_mut(i as usize)) {
@@ -268,6 +272,10 @@ impl VcmIntegrator {
         let threads = rayon::current_num_threads() as f64;
         // Bidirectional passes traced (the pilot's included).
         let bpasses = times.passes;
+        if record {
+            // The per-strategy images' own run: the counters stay those of the image's.
+            return Ok((film, stats, strategies, pass));
+        }
         let c = &mut self.counters;
         c.insert("passes".into(), pass as f64);
         c.insert("path_tracing_passes".into(), if use_path.is_some() { run as f64 } else { 0.0 });
