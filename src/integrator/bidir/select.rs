@@ -11,10 +11,17 @@
 //! two candidates: the configured bidirectional pass, and unidirectional path tracing
 //! (`path`'s estimator, emitter hits and light sampling under MIS, one sample per pixel
 //! per pass). Each runs [`PILOT_PASSES`] passes; the relative variance of one pass,
-//! V = mean over pixels and channels of s²/(m² + ε) (s² the sample variance of the
-//! pixel's pass values, m the mean of all pilot passes of both, ε = relMSE's 10⁻²), times
-//! the work of one pass gives each candidate's cost of reaching a given relMSE; the
-//! lower one renders the image. The cost is counted, not timed, so the choice — and the
+//! V = mean over pixels and channels of s²/(m² + ε) (s² the per-pixel variance of a
+//! pass, m the mean of all pilot passes of both, ε = relMSE's 10⁻²), times the work of
+//! one pass gives each candidate's cost of reaching a given relMSE; the lower one
+//! renders the image. The bidirectional pass's s² is the sample variance of its pilot
+//! passes. Path tracing's is the larger of its own passes' sample variance, which misses
+//! light it rarely finds, and an estimate from the bidirectional samples, which see that
+//! light: under the balance heuristic a contribution C of any technique is f/Σₜpₜ, so
+//! Σ C²/(w₀ + w₁) — w₀ + w₁ the weights' share of the emitter hit and light sampling,
+//! path tracing's two techniques ([`super::mis::uni_share`]) — estimates path tracing's
+//! second moment ∫ f²/(p₀ + p₁); less m², as it leaves out the (positive) covariances
+//! between path lengths. The cost is counted, not timed, so the choice — and the
 //! image — is the same on every run and for any thread count: rays traced (closest hit
 //! and shadow), a bidirectional pass's weighted by [`BIDIR_RAY_COST`].
 //!
