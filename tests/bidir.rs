@@ -140,6 +140,10 @@ fn images_are_bit_identical_for_any_thread_count() {
         };
         assert!(run(1) == run(2), "{integrator} {extra:?}: 1 and 2 threads differ");
     }
+    // `vcm` rendering by path tracing after its pilot (the choice and the batches of
+    // passes alike), 5 passes: the two of the pilot, then batches of 2 and 1.
+    let run = |threads| render("cornell", RenderConfig { threads, ..cfg("vcm", 40, 1, 5) }.with("passes", 5)).pixels;
+    assert!(run(1) == run(2), "vcm choosing path tracing: 1 and 2 threads differ");
 }
 
 /// With every path length shown (max_depth 4), the weighted per-technique images add
