@@ -54,17 +54,8 @@ pub fn render_each(
     let (w, h) = (cam.width, cam.height);
     let (tiles, stats) = trace_tiles(world, integrator, sampler, first, count, quiet, true);
     let mut out = vec![Color::ZERO; (w * h) as usize * count as usize];
-    let tiles_x = w.div_ceil(TILE);
     for (t, values) in tiles.iter().enumerate() {
-        let (x0, y0) = ((t as u32 % tiles_x) * TILE, (t as u32 / tiles_x) * TILE);
-        let mut k = 0;
-        for y in y0..(y0 + TILE).min(h) {
-            for x in x0..(x0 + TILE).min(w) {
-                let p = (y * w + x) as usize * count as usize;
-                out[p..p + count as usize].copy_from_slice(&values[k..k + count as usize]);
-                k += count as usize;
-            }
-        }
+        scatter_tile_each(&mut out, w, h, t as u32, values, count as usize);
     }
     (out, stats)
 }
@@ -161,14 +152,19 @@ fn trace_tiles(
 /// Copies the pixels of tile `t` (row-major inside the tile, tiles row-major over the
 /// image) into the `w` × `h` image `out`.
 pub fn scatter_tile<T: Copy>(out: &mut [T], w: u32, h: u32, t: u32, pixels: &[T]) {
+    scatter_tile_each(out, w, h, t, pixels, 1);
+}
+
+/// As [`scatter_tile`] with `k` values per pixel (pixel p's at `p · k …` in `out`).
+fn scatter_tile_each<T: Copy>(out: &mut [T], w: u32, h: u32, t: u32, values: &[T], k: usize) {
     let tiles_x = w.div_ceil(TILE);
     let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
-    let x1 = (x0 + TILE).min(w);
-    let mut k = 0;
+    let mut i = 0;
     for y in y0..(y0 + TILE).min(h) {
-        for x in x0..x1 {
-            out[(y * w + x) as usize] = pixels[k];
-            k += 1;
+        for x in x0..(x0 + TILE).min(w) {
+            let p = (y * w + x) as usize * k;
+            out[p..p + k].copy_from_slice(&values[i..i + k]);
+            i += k;
         }
     }
 }

@@ -81,27 +81,23 @@ impl Pilot {
     pub fn new(bidir: &[Vec<DVec3>], moments: &[Vec<(DVec3, DVec3)>], bidir_rays: u64, path: &[Vec<DVec3>], path_rays: u64) -> Self {
         let mean = pooled_mean(bidir, path);
         let n = mean.len();
-        let (mut vb, mut vp, mut vo) = (0.0, 0.0, 0.0);
+        // Path tracing's variance per pixel: the larger of its own passes' and the one
+        // from the bidirectional samples — its second moment without the terms between
+        // contributions, less the squared mean.
+        let mut vp = 0.0;
         for (p, m) in mean.iter().enumerate() {
-            let norm = *m * *m + DVec3::splat(REL_EPS);
-            let sb = sample_variance(bidir, p);
-            let sp = sample_variance(path, p);
-            // Path tracing's variance from the bidirectional samples: its second
-            // moment without the terms between contributions, less the squared mean.
             let m1 = moments.iter().map(|pass| pass[p].1).sum::<DVec3>() / moments.len().max(1) as f64;
             let model = (m1 - *m * *m).max(DVec3::ZERO);
-            vb += (sb / norm).element_sum() / 3.0;
-            vp += (sp.max(model) / norm).element_sum() / 3.0;
-            vo += (sp / norm).element_sum() / 3.0;
+            vp += (sample_variance(path, p).max(model) / (*m * *m + DVec3::splat(REL_EPS))).element_sum() / 3.0;
         }
         let cand = |k: usize, rel_var: f64, rays: u64, weight: f64| {
             let per = rays as f64 / k.max(1) as f64;
-            Candidate { rel_var: rel_var / n.max(1) as f64, rays_per_pass: per, cost: per * weight }
+            Candidate { rel_var, rays_per_pass: per, cost: per * weight }
         };
         Pilot {
-            bidir: cand(bidir.len(), vb, bidir_rays, BIDIR_RAY_COST),
-            path: cand(path.len(), vp, path_rays, 1.0),
-            path_own_rel_var: vo / n.max(1) as f64,
+            bidir: cand(bidir.len(), rel_variance(bidir, &mean), bidir_rays, BIDIR_RAY_COST),
+            path: cand(path.len(), vp / n.max(1) as f64, path_rays, 1.0),
+            path_own_rel_var: rel_variance(path, &mean),
         }
     }
 
