@@ -164,7 +164,7 @@ pub fn catalogue() -> Catalogue {
                 },
                 Plugin {
                     name: "vcm",
-                    doc: "Vertex connection and merging (Georgiev et al. 2012): bdpt and photon merging under one MIS weight, progressive; by default a pilot renders by path tracing instead where that is estimated more efficient (`vcm_select`).",
+                    doc: "Vertex connection and merging (Georgiev et al. 2012): bdpt and photon merging under one MIS weight, progressive; by default a pilot renders by path tracing or sppm instead where one is predicted more efficient (`vcm_select`).",
                     params: VcmParams::DEFS,
                     groups: &["bidir", "progressive"],
                 },

@@ -196,6 +196,16 @@ fn vcm_resumes_bit_identically() {
         let resumed = render("cornell", c(8).with("resume", true));
         assert!(full.pixels == resumed.pixels, "vcm_connect_draws {draws}, vcm_select {select}, first run {first} passes");
     }
+    // The glass box, where the pilot chooses `sppm`: a checkpoint within its pilot
+    // passes and one after.
+    for first in [1, 5] {
+        let c = |passes: u32| cfg("vcm", 48, 1, 0).with("passes", passes).with("checkpoint_file", file.clone());
+        let full = render_scene(builtin("cornell-glass").unwrap(), &c(12), true).unwrap();
+        assert_eq!(full.extra["pilot_chose_sppm"], 1.0, "{:?}", full.extra);
+        render("cornell-glass", c(first).with("checkpoint_every", 1));
+        let resumed = render("cornell-glass", c(12).with("resume", true));
+        assert!(full.film.pixels == resumed.pixels, "sppm chosen, first run {first} passes");
+    }
 }
 
 /// `vcm_select = "efficiency"` (the default) renders the diffuse box by path tracing —
@@ -214,9 +224,31 @@ fn vcm_chooses_path_tracing_only_where_it_pays() {
     let v = outcome("door-ajar", cfg("vcm", 32, 1, 3).with("passes", 6));
     assert_eq!(v.extra["pilot_chose_path"], 0.0);
     assert!(v.extra["pilot_path_rel_var"] > 10.0 * v.extra["pilot_bidir_rel_var"], "{:?}", v.extra);
+    assert_eq!(v.extra["pilot_chose_sppm"], 0.0);
+    assert!(v.extra["pilot_sppm_predicted"] > 2.0 * v.extra["pilot_bidir_predicted"], "{:?}", v.extra);
     let off = outcome("door-ajar", cfg("vcm", 32, 1, 3).with("passes", 6).with("vcm_select", "off"));
     assert!(v.film.pixels == off.film.pixels, "the chosen bidirectional passes differ from vcm_select = off");
     assert!(!off.extra.contains_key("pilot_chose_path"));
+}
+
+/// On the box with a glass sphere (caustics on the floor, light through glass), `sppm`
+/// reaches a given error at less work than the bidirectional pass and far less than path
+/// tracing: the pilot chooses it, and the image is `sppm`'s, bit for bit, on 1 and 2
+/// threads; `vcm_select = "bidir-path"` leaves it out.
+#[test]
+fn vcm_chooses_sppm_where_it_pays() {
+    let outcome = |c: RenderConfig| render_scene(builtin("cornell-glass").unwrap(), &c, true).unwrap();
+    let v = outcome(cfg("vcm", 48, 1, 0).with("passes", 16));
+    assert_eq!(v.extra["pilot_chose_sppm"], 1.0, "{:?}", v.extra);
+    assert_eq!(v.extra["sppm_passes"], 16.0);
+    assert!(v.extra["pilot_path_rel_var"] > 5.0 * v.extra["pilot_sppm_predicted"], "{:?}", v.extra);
+    let s = outcome(cfg("sppm", 48, 1, 0).with("passes", 16));
+    assert!(v.film.pixels == s.film.pixels, "vcm's sppm passes are not sppm's");
+    let one = outcome(RenderConfig { threads: 1, ..cfg("vcm", 48, 1, 0).with("passes", 16) });
+    assert!(one.film.pixels == v.film.pixels, "1 and 2 threads differ");
+    let two = outcome(cfg("vcm", 48, 1, 0).with("passes", 16).with("vcm_select", "bidir-path"));
+    assert!(!two.extra.contains_key("pilot_chose_sppm"), "{:?}", two.extra);
+    assert_eq!(two.extra["pilot_chose_path"], 0.0);
 }
 
 /// Bad settings are named.

@@ -31,6 +31,10 @@ pub trait Record {
     /// its weights ([`super::mis::uni_share`]), for the pilot of `vcm_select`.
     #[inline]
     fn moment(&mut self, _value: Color, _uni: f32) {}
+    /// One merging contribution `value` (also given to [`Record::moment`]), for the
+    /// pilot's variance of the merges, which grows as the radius shrinks.
+    #[inline]
+    fn merged(&mut self, _value: Color) {}
 }
 
 /// Records nothing.
@@ -390,7 +394,9 @@ fn merge_at<R: Record>(
                 weight_merge(&ctx.f, &v.partials, cam, cam_dir, if_used(cam.dvm, || bsdf.pdf(&it.sp, v.w_prev, wo)))
             };
             *sum += f * v.throughput * w;
-            rec.moment(scale * f * v.throughput * w, uni_share(w, uni_merge(&ctx.f, &v.partials, cam_dir)));
+            let c = scale * f * v.throughput * w;
+            rec.moment(c, uni_share(w, uni_merge(&ctx.f, &v.partials, cam_dir)));
+            rec.merged(c);
         }
     };
     m.grid.for_each_bucket(it.p, |slots| {

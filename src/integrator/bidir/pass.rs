@@ -52,6 +52,8 @@ struct RowRecord {
     x: usize,
     /// Per pixel of the row: see [`PassOut::moments`].
     moments: Vec<(DVec3, DVec3)>,
+    /// Per pixel of the row (with moments): see [`PassOut::merged`].
+    merged: Vec<DVec3>,
 }
 
 impl Record for RowRecord {
@@ -65,6 +67,12 @@ impl Record for RowRecord {
     fn moment(&mut self, value: Color, uni: f32) {
         if let Some(m) = self.moments.get_mut(self.x) {
             add_moment(m, value, uni);
+        }
+    }
+    #[inline]
+    fn merged(&mut self, value: Color) {
+        if let Some(m) = self.merged.get_mut(self.x) {
+            *m += value.as_dvec3();
         }
     }
 }
@@ -103,10 +111,12 @@ pub struct PassOut {
     /// this combination and of path tracing's (under the balance heuristic
     /// ∫ f²/Σₜpₜ and ∫ f²/(p₀ + p₁), estimated by Σ C · f/Σₜpₜ = Σ C² and Σ C² Σₜpₜ/(p₀ + p₁)).
     pub moments: Vec<(DVec3, DVec3)>,
+    /// With `moments`, per pixel: the merges' part of the pass's estimate.
+    pub merged: Vec<DVec3>,
 }
 
 /// A row of the camera phase: pixels, counters, non-finite samples, items, moments.
-type EyeRow = (Vec<DVec3>, TraversalStats, u64, Vec<Item>, Vec<(DVec3, DVec3)>);
+type EyeRow = (Vec<DVec3>, TraversalStats, u64, Vec<Item>, (Vec<(DVec3, DVec3)>, Vec<DVec3>));
 
 struct LightChunk {
     vertices: Vec<LightVertex>,
@@ -191,7 +201,8 @@ pub fn run_pass(
                 let mut st = TraversalStats::default();
                 let mut bad = 0u64;
                 let row_moments = if moments { vec![Default::default(); w as usize] } else { Vec::new() };
-                let mut rec = RowRecord { on: record, pixel: 0, items: Vec::new(), x: 0, moments: row_moments };
+                let row_merged = if moments { vec![DVec3::ZERO; w as usize] } else { Vec::new() };
+                let mut rec = RowRecord { on: record, pixel: 0, items: Vec::new(), x: 0, moments: row_moments, merged: row_merged };
                 let mut px = Vec::with_capacity(w as usize);
                 crate::sampler::with_sampler!(&mut *s, s => {
                     for x in 0..w {
@@ -207,14 +218,15 @@ pub fn run_pass(
                         }
                     }
                 });
-                (px, st, bad, rec.items, rec.moments)
+                (px, st, bad, rec.items, (rec.moments, rec.merged))
             },
         )
         .collect();
     let mut pixels = Vec::with_capacity((w * h) as usize);
-    for (px, st, bad, items, m) in eye_rows {
+    for (px, st, bad, items, (m, merged)) in eye_rows {
         pixels.extend(px);
         out.moments.extend(m);
+        out.merged.extend(merged);
         out.traversal.add(&st);
         out.nonfinite += bad;
         out.items.extend(items);

@@ -11,7 +11,7 @@
 //! the techniques for ablations (SmallVCM's algorithms): `bpt` connections only, `ppm`
 //! merging at the first non-delta camera vertex only (no MIS), `lt` light tracing only.
 //! With `vcm_mode = "vcm"`, `vcm_select = "efficiency"` (the default) chooses per scene
-//! between that pass and path tracing from a pilot ([`super::select`]).
+//! between that pass, path tracing and `sppm` from a pilot ([`super::select`]).
 
 use super::mis::Heuristic;
 use super::pass::run_pass;
@@ -21,12 +21,15 @@ use super::{BidirParams, Ctx, Mode};
 use crate::config::RenderConfig;
 use crate::film::Film;
 use crate::integrator::path::PathIntegrator;
+use crate::integrator::progressive::sppm::{SppmIntegrator, SppmParams, SppmSetup};
+use crate::integrator::progressive::sppm_phases::{SppmRun, pass_estimates};
 use crate::integrator::progressive::{Budget, OnPass, ProgressiveParams, load_checkpoint, save_checkpoint};
 use crate::integrator::render::{RenderStats, render_each};
 use crate::rr::RussianRoulette;
 use crate::world::World;
 use anyhow::{Result, bail};
-use glam::DVec3;
+use glam::{DVec3, Vec3};
+use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, VecDeque};
 
 /// α when `alpha` is not set (SmallVCM's default).
@@ -47,7 +50,7 @@ crate::params! {
         vcm_connect_draws: u32 = "1",
         /// Camera vertices merged with the pass's light vertices: the `first` non-delta one only (the MIS weights count merging only there) or `all` non-delta ones (SmallVCM).
         vcm_merge: String = "first",
-        /// Technique set per scene (with `vcm_mode = "vcm"`): `efficiency` runs 2 pilot passes of the bidirectional pass and of path tracing (`path`'s estimator, one sample per pixel a pass) and renders with the one of lower relative variance × counted work per pass (Grittmann et al. 2022); `off`: always the bidirectional pass.
+        /// Technique set per scene (with `vcm_mode = "vcm"`): `efficiency` runs 2 pilot passes each of the bidirectional pass, path tracing (`path`'s estimator, one sample per pixel a pass) and `sppm` (its defaults) and renders with the one whose predicted relMSE × counted work is lowest (Grittmann et al. 2022; `sppm`'s bias priced by its difference from the unbiased pilots); `bidir-path`: the first two only; `off`: always the bidirectional pass.
         vcm_select: String = "efficiency",
     }
 }
@@ -74,8 +77,10 @@ pub struct VcmIntegrator {
     alpha: f32,
     prog: ProgressiveParams,
     rr: Box<dyn RussianRoulette>,
-    /// Path tracing, the other candidate of `vcm_select = "efficiency"` (`None`: off).
+    /// Path tracing, a candidate of `vcm_select = "efficiency"` (`None`: off).
     path: Option<PathIntegrator>,
+    /// `sppm`, a candidate of `vcm_select = "efficiency"` (`None`: not a candidate).
+    sppm: Option<SppmIntegrator>,
     quiet: bool,
     counters: BTreeMap<String, f64>,
 }
@@ -102,13 +107,26 @@ impl VcmIntegrator {
         }
         let alpha = if cfg.params.contains("alpha") { prog.alpha } else { DEFAULT_ALPHA };
         let mode = Mode::parse(&p.vcm_mode)?.with_merge(&p.vcm_merge)?;
-        let path = match p.vcm_select.as_str() {
-            // `path`'s own roulette when `rr` is `auto`.
-            "efficiency" if p.vcm_mode == "vcm" => {
-                Some(PathIntegrator { max_depth: cfg.depth_limit(), rr: crate::rr::make_for(&cfg.rr, "path")?, output: Default::default() })
+        let (path, sppm) = match p.vcm_select.as_str() {
+            "efficiency" | "bidir-path" if p.vcm_mode == "vcm" => {
+                // `path`'s and `sppm`'s own roulette when `rr` is `auto`.
+                let path =
+                    PathIntegrator { max_depth: cfg.depth_limit(), rr: crate::rr::make_for(&cfg.rr, "path")?, output: Default::default() };
+                let sppm = (p.vcm_select == "efficiency")
+                    .then(|| -> Result<SppmIntegrator> {
+                        // `sppm` as its defaults set it (the run's `alpha`, passes and time limit).
+                        let direct = crate::integrator::photon::DirectParams {
+                            direct_samples: crate::integrator::progressive::sppm::DEFAULT_DIRECT_SAMPLES,
+                            ..Default::default()
+                        };
+                        let set = SppmSetup { p: SppmParams::default(), prog: prog.clone(), direct };
+                        Ok(SppmIntegrator::from_setup(cfg, set, crate::rr::make_for(&cfg.rr, "sppm")?, true))
+                    })
+                    .transpose()?;
+                (Some(path), sppm)
             }
-            "efficiency" | "off" => None,
-            other => bail!("unknown vcm_select `{other}` (known: efficiency, off)"),
+            "efficiency" | "bidir-path" | "off" => (None, None),
+            other => bail!("unknown vcm_select `{other}` (known: efficiency, bidir-path, off)"),
         };
         Ok(VcmIntegrator {
             cfg: cfg.clone(),
@@ -121,6 +139,7 @@ impl VcmIntegrator {
             prog,
             rr,
             path,
+            sppm,
             quiet,
             counters: BTreeMap::new(),
         })
@@ -177,7 +196,7 @@ impl VcmIntegrator {
             stats.nonfinite_samples += out.nonfinite;
             times.add(&out);
             strategies.add(&out.items, npix);
-            (out.pixels, out.moments)
+            (out.pixels, out.moments, out.merged)
         };
         // Passes `first` … `first + count − 1` of path tracing (their sample index of
         // every pixel), traced in one go: one parallel loop, each pixel's samples in a row.
@@ -193,17 +212,51 @@ impl VcmIntegrator {
         // candidate's first passes, and whether it is path tracing.
         let mut ahead: VecDeque<Vec<DVec3>> = VecDeque::new();
         let mut use_path = None;
+        // `sppm` when chosen, and its image and state after each pilot pass.
+        let mut use_sppm: Option<SppmRun> = None;
+        let mut sppm_pilot: Vec<(Vec<Vec3>, Vec<[u64; 8]>)> = Vec::new();
         if let Some(path) = self.path.as_ref().filter(|_| !record) {
-            let (mut b, mut moments) = (VecDeque::new(), Vec::new());
+            let (mut b, mut moments, mut merged) = (VecDeque::new(), Vec::new(), Vec::new());
             for i in 0..select::PILOT_PASSES {
-                let (px, m) = bidir_pass(i, true, &mut stats, &mut strategies, &mut times);
+                let (px, m, mg) = bidir_pass(i, true, &mut stats, &mut strategies, &mut times);
                 b.push_back(px);
                 moments.push(m);
+                merged.push(mg);
             }
             let b_rays = stats.traversal.total_rays();
             let mut p = path_passes(path, 0, select::PILOT_PASSES, &mut stats);
             let p_rays = stats.traversal.total_rays() - b_rays;
-            let pilot = select::Pilot::new(b.make_contiguous(), &moments, b_rays, p.make_contiguous(), p_rays);
+            // `sppm`'s pilot (no candidate if it cannot run this many passes).
+            let mut sppm = self.sppm.as_ref().and_then(|s| SppmRun::new(s, world, budget.max_passes).ok());
+            let (mut direct, mut flux) = (Vec::new(), Vec::new());
+            if let Some(run) = sppm.as_mut() {
+                let mut f = Film::new(w, h);
+                for i in 0..select::PILOT_PASSES {
+                    let before = run.pixels().to_vec();
+                    run.pass(i);
+                    let (d, g) = pass_estimates(&before, run.pixels(), run.photons_per_pass());
+                    direct.push(d);
+                    flux.push(g);
+                    run.write_film(i + 1, &mut f);
+                    sppm_pilot.push((f.pixels.clone(), run.state()));
+                }
+            }
+            let pilot = select::Pilot::new(&select::PilotInput {
+                bidir: b.make_contiguous(),
+                bidir_merged: &merged,
+                moments: &moments,
+                bidir_rays: b_rays,
+                bidir_alpha: alpha as f64,
+                path: p.make_contiguous(),
+                path_rays: p_rays,
+                sppm: sppm.as_ref().map(|r| select::SppmPilot {
+                    direct: &direct,
+                    flux: &flux,
+                    rays: r.rays(),
+                    alpha: self.prog.alpha as f64,
+                }),
+                horizon: if budget.max_passes == u32::MAX { select::HORIZON } else { budget.max_passes.min(1 << 20) },
+            });
             let c = &mut self.counters;
             c.insert("pilot_bidir_rel_var".into(), pilot.bidir.rel_var);
             c.insert("pilot_path_rel_var".into(), pilot.path.rel_var);
@@ -212,29 +265,82 @@ impl VcmIntegrator {
             c.insert("pilot_path_rays_per_pass".into(), pilot.path.rays_per_pass);
             c.insert("pilot_chose_path".into(), pilot.prefers_path() as u8 as f64);
             c.insert("pilot_advantage".into(), pilot.advantage());
-            if pilot.prefers_path() {
-                ahead = p;
-                use_path = Some(path);
-            } else {
-                ahead = b;
+            c.insert("pilot_bidir_predicted".into(), pilot.bidir.rel_mse_passes);
+            if let Some(m) = pilot.sppm {
+                c.insert("pilot_sppm_rel_var".into(), m.rel_var);
+                c.insert("pilot_sppm_rel_bias2".into(), pilot.sppm_rel_bias2);
+                c.insert("pilot_sppm_predicted".into(), m.rel_mse_passes);
+                c.insert("pilot_sppm_rays_per_pass".into(), m.rays_per_pass);
+                c.insert("pilot_chose_sppm".into(), (pilot.choice() == select::Choice::Sppm) as u8 as f64);
+            }
+            match pilot.choice() {
+                select::Choice::Path => {
+                    ahead = p;
+                    use_path = Some(path);
+                }
+                select::Choice::Bidir => ahead = b,
+                select::Choice::Sppm => use_sppm = sppm.take(),
+            }
+            if let Some(run) = sppm {
+                // Not chosen: its pilot's rays still count.
+                stats.traversal.add(&run.finish(0, 0.0, &mut BTreeMap::new()).traversal);
+                sppm_pilot.clear();
             }
         }
         let mut sum = vec![DVec3::ZERO; npix];
         let mut pass = 0u32;
         let mut film = Film::new(w, h);
-        if !record && let Some((done, saved)) = load_checkpoint::<Vec<[u64; 3]>>(&self.cfg, &self.prog, world)? {
-            if saved.len() != npix {
-                bail!("checkpoint holds {} pixels, the image has {npix}", saved.len());
-            }
-            sum = saved.iter().map(|b| DVec3::new(f64::from_bits(b[0]), f64::from_bits(b[1]), f64::from_bits(b[2]))).collect();
+        // Passes the state of `use_sppm` holds.
+        let mut sppm_at = sppm_pilot.len() as u32;
+        if !record && let Some((done, saved)) = load_checkpoint::<VcmState>(&self.cfg, &self.prog, world)? {
             pass = done;
-            film.pixels = sum.iter().map(|s| (*s / pass.max(1) as f64).as_vec3()).collect();
+            match (saved, use_sppm.as_mut()) {
+                (VcmState::Sums(saved), None) => {
+                    if saved.len() != npix {
+                        bail!("checkpoint holds {} pixels, the image has {npix}", saved.len());
+                    }
+                    sum = saved.iter().map(|b| DVec3::new(f64::from_bits(b[0]), f64::from_bits(b[1]), f64::from_bits(b[2]))).collect();
+                    film.pixels = sum.iter().map(|s| (*s / pass.max(1) as f64).as_vec3()).collect();
+                }
+                (VcmState::Sppm(saved), Some(run)) => {
+                    if done > sppm_at {
+                        run.restore(&saved)?;
+                        sppm_at = done;
+                        run.write_film(done, &mut film);
+                    } else if let Some((img, _)) = done.checked_sub(1).and_then(|i| sppm_pilot.get(i as usize)) {
+                        film.pixels.clone_from(img);
+                    }
+                }
+                _ => bail!(
+                    "{}: the checkpoint holds the state of another technique than the pilot chose (re-render from the start)",
+                    self.prog.checkpoint_file.as_deref().unwrap_or("checkpoint")
+                ),
+            }
         }
-        let mut run = 0u32;
+        let mut run_count = 0u32;
         // Passes `ahead_first` … are in `ahead`.
         let mut ahead_first = 0u32;
         let pb = crate::progress::progress_bar(counts.unwrap_or(0), self.quiet, "vcm");
         while budget.more(pass) {
+            if let Some(run) = use_sppm.as_mut() {
+                // `sppm`'s passes: its pilot's first, then its own.
+                if pass < sppm_at {
+                    film.pixels.clone_from(&sppm_pilot[pass as usize].0);
+                } else {
+                    run.pass(pass);
+                    sppm_at = pass + 1;
+                    run.write_film(pass + 1, &mut film);
+                }
+                pass += 1;
+                run_count += 1;
+                pb.inc(1);
+                on_pass(pass, budget.elapsed(), &film);
+                if self.prog.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
+                    let state = if pass < sppm_at { sppm_pilot[pass as usize - 1].1.clone() } else { run.state() };
+                    save_checkpoint(&self.cfg, &self.prog, world, pass, &VcmState::Sppm(state))?;
+                }
+                continue;
+            }
             if let Some(path) = use_path
                 && !(ahead_first..ahead_first + ahead.len() as u32).contains(&pass)
             {
@@ -253,7 +359,7 @@ impl VcmIntegrator {
                 *s += *p;
             }
             pass += 1;
-            run += 1;
+            run_count += 1;
             pb.inc(1);
             film.pixels = sum.iter().map(|s| (*s / pass as f64).as_vec3()).collect();
             on_pass(pass, budget.elapsed(), &film);
@@ -263,7 +369,7 @@ impl VcmIntegrator {
                     &self.prog,
                     world,
                     pass,
-                    &sum.iter().map(|s| [s.x.to_bits(), s.y.to_bits(), s.z.to_bits()]).collect::<Vec<_>>(),
+                    &VcmState::Sums(sum.iter().map(|s| [s.x.to_bits(), s.y.to_bits(), s.z.to_bits()]).collect()),
                 )?;
             }
         }
@@ -277,8 +383,14 @@ impl VcmIntegrator {
             return Ok((film, stats, strategies, pass));
         }
         let c = &mut self.counters;
+        if let Some(run) = use_sppm {
+            let st = run.finish(pass, stats.seconds, c);
+            stats.traversal.add(&st.traversal);
+            stats.nonfinite_samples += st.nonfinite_samples;
+        }
+        c.insert("sppm_passes".into(), if c.get("pilot_chose_sppm") == Some(&1.0) { run_count as f64 } else { 0.0 });
         c.insert("passes".into(), pass as f64);
-        c.insert("path_tracing_passes".into(), if use_path.is_some() { run as f64 } else { 0.0 });
+        c.insert("path_tracing_passes".into(), if use_path.is_some() { run_count as f64 } else { 0.0 });
         c.insert("light_phase_s".into(), times.light);
         c.insert("grid_s".into(), times.grid);
         c.insert("camera_phase_s".into(), times.eye);
@@ -292,9 +404,18 @@ impl VcmIntegrator {
             c.insert("light_subpaths_per_s_per_thread".into(), bpasses as f64 * light_paths as f64 / times.light.max(1e-9) / threads);
             c.insert("camera_subpaths_per_s_per_thread".into(), bpasses as f64 * npix as f64 / times.eye.max(1e-9) / threads);
         }
-        c.insert("passes_per_s".into(), run as f64 / stats.seconds.max(1e-9));
+        c.insert("passes_per_s".into(), run_count as f64 / stats.seconds.max(1e-9));
         Ok((film, stats, strategies, pass))
     }
+}
+
+/// What a `vcm` checkpoint holds: the sums of the passes' estimates (bidirectional
+/// passes or path tracing), or `sppm`'s per-pixel statistics when the pilot chose it.
+#[derive(Serialize, Deserialize)]
+#[serde(untagged)]
+enum VcmState {
+    Sums(Vec<[u64; 3]>),
+    Sppm(Vec<[u64; 8]>),
 }
 
 /// Seconds in the phases of the bidirectional passes, and light vertices stored.

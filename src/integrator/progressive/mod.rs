@@ -7,6 +7,7 @@
 pub mod grid;
 pub mod ppm;
 pub mod sppm;
+pub mod sppm_phases;
 
 use crate::config::RenderConfig;
 use crate::film::Film;
