@@ -41,14 +41,11 @@
 //! in the same order for any thread count (pbrt-v4 splats photons into the visible
 //! points with atomic adds instead, whose order depends on the schedule).
 
+use super::ProgressiveParams;
 pub use super::grid::{GridPhoton, PhotonGrid};
-use super::sppm_phases::SppmRun;
-use super::{Budget, OnPass, ProgressiveParams, load_checkpoint, save_checkpoint};
 use crate::accel::TraversalStats;
 use crate::config::RenderConfig;
-use crate::film::Film;
 use crate::integrator::photon::DirectParams;
-use crate::integrator::render::RenderStats;
 use crate::material::{Bsdf, ShadingPoint, TransportMode};
 use crate::math::{Color, hash_words};
 use crate::photon::estimate;
@@ -216,8 +213,8 @@ pub struct SppmIntegrator {
     pub(super) cfg: RenderConfig,
     pub(super) set: SppmSetup,
     pub(super) rr: Box<dyn RussianRoulette>,
-    quiet: bool,
-    counters: BTreeMap<String, f64>,
+    pub(super) quiet: bool,
+    pub(super) counters: BTreeMap<String, f64>,
 }
 
 impl SppmIntegrator {
@@ -335,38 +332,6 @@ impl SppmIntegrator {
             ray = world.spawn(&it, bs.wi);
         }
         (l, None)
-    }
-
-    /// Runs the passes; returns the final image and its counters.
-    fn run(&mut self, world: &World, on_pass: OnPass) -> Result<(Film, RenderStats)> {
-        let cam = &world.scene.camera;
-        let (w, h) = (cam.width, cam.height);
-        let budget = Budget::new(&self.set.prog);
-        let mut run = SppmRun::new(self, world, budget.max_passes)?;
-        let mut pass = 0u32;
-        let mut film = Film::new(w, h);
-        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 8]>>(&self.cfg, &self.set.prog, world)? {
-            run.restore(&saved)?;
-            pass = done;
-            run.write_film(pass, &mut film);
-        }
-        let pb =
-            crate::progress::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "sppm");
-        while budget.more(pass) {
-            run.pass(pass);
-            pass += 1;
-            pb.inc(1);
-            run.write_film(pass, &mut film);
-            on_pass(pass, budget.elapsed(), &film);
-            if self.set.prog.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
-                save_checkpoint(&self.cfg, &self.set.prog, world, pass, &run.state())?;
-            }
-        }
-        pb.finish_and_clear();
-        let mut counters = BTreeMap::new();
-        let stats = run.finish(pass, budget.elapsed(), &mut counters);
-        self.counters = counters;
-        Ok((film, stats))
     }
 }
 

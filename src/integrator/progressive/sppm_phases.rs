@@ -1,9 +1,10 @@
 //! The phases of an `sppm` pass ([`super::sppm`]: camera pass, photon pass, gather and
-//! update) and [`SppmRun`], the state a run carries from pass to pass, which `sppm`
-//! drives and `vcm`'s pilot drives as one of its candidates.
+//! update), [`SppmRun`], the state a run carries from pass to pass, and `sppm`'s pass
+//! loop, which drives it as `vcm`'s pilot does for one of its candidates.
 
 use super::grid::{GridPhoton, PhotonGrid};
 use super::sppm::{PixelStats, SppmIntegrator, VisiblePoint, gather_covered, photon_stream};
+use super::{Budget, OnPass, load_checkpoint, save_checkpoint};
 use crate::accel::TraversalStats;
 use crate::film::Film;
 use crate::integrator::render::RenderStats;
@@ -16,6 +17,40 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::time::Instant;
+
+impl SppmIntegrator {
+    /// Runs the passes; returns the final image and its counters.
+    pub(super) fn run(&mut self, world: &World, on_pass: OnPass) -> Result<(Film, RenderStats)> {
+        let cam = &world.scene.camera;
+        let (w, h) = (cam.width, cam.height);
+        let budget = Budget::new(&self.set.prog);
+        let mut run = SppmRun::new(self, world, budget.max_passes)?;
+        let mut pass = 0u32;
+        let mut film = Film::new(w, h);
+        if let Some((done, saved)) = load_checkpoint::<Vec<[u64; 8]>>(&self.cfg, &self.set.prog, world)? {
+            run.restore(&saved)?;
+            pass = done;
+            run.write_film(pass, &mut film);
+        }
+        let pb =
+            crate::progress::progress_bar(if budget.max_passes == u32::MAX { 0 } else { budget.max_passes as u64 }, self.quiet, "sppm");
+        while budget.more(pass) {
+            run.pass(pass);
+            pass += 1;
+            pb.inc(1);
+            run.write_film(pass, &mut film);
+            on_pass(pass, budget.elapsed(), &film);
+            if self.set.prog.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
+                save_checkpoint(&self.cfg, &self.set.prog, world, pass, &run.state())?;
+            }
+        }
+        pb.finish_and_clear();
+        let mut counters = BTreeMap::new();
+        let stats = run.finish(pass, budget.elapsed(), &mut counters);
+        self.counters = counters;
+        Ok((film, stats))
+    }
+}
 
 /// Photon paths traced per parallel work item.
 const PHOTON_CHUNK: u64 = 1024;
