@@ -331,46 +331,37 @@ impl VcmIntegrator {
                     sppm_at = pass + 1;
                     run.write_film(pass + 1, &mut film);
                 }
-                pass += 1;
-                run_count += 1;
-                pb.inc(1);
-                on_pass(pass, budget.elapsed(), &film);
-                if self.prog.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
-                    let state = if pass < sppm_at { sppm_pilot[pass as usize - 1].1.clone() } else { run.state() };
-                    save_checkpoint(&self.cfg, &self.prog, world, pass, &VcmState::Sppm(state))?;
-                }
-                continue;
-            }
-            if let Some(path) = use_path
-                && !(ahead_first..ahead_first + ahead.len() as u32).contains(&pass)
-            {
-                // Batches grow with the pass count (2, 4, 8, … up to `batch`), so the
-                // images after 2ᵏ passes come as soon as those passes are done.
-                let count = batch.min(pass.max(1)).min(budget.max_passes.saturating_sub(pass)).max(1);
-                ahead = path_passes(path, pass, count, &mut stats);
-                ahead_first = pass;
-            }
-            let pixels = if let Some(px) = pass.checked_sub(ahead_first).and_then(|i| ahead.get_mut(i as usize)) {
-                std::mem::take(px)
             } else {
-                bidir_pass(pass, false, &mut stats, &mut strategies, &mut times).0
-            };
-            for (s, p) in sum.iter_mut().zip(&pixels) {
-                *s += *p;
+                if let Some(path) = use_path
+                    && !(ahead_first..ahead_first + ahead.len() as u32).contains(&pass)
+                {
+                    // Batches grow with the pass count (2, 4, 8, … up to `batch`), so the
+                    // images after 2ᵏ passes come as soon as those passes are done.
+                    let count = batch.min(pass.max(1)).min(budget.max_passes.saturating_sub(pass)).max(1);
+                    ahead = path_passes(path, pass, count, &mut stats);
+                    ahead_first = pass;
+                }
+                let pixels = if let Some(px) = pass.checked_sub(ahead_first).and_then(|i| ahead.get_mut(i as usize)) {
+                    std::mem::take(px)
+                } else {
+                    bidir_pass(pass, false, &mut stats, &mut strategies, &mut times).0
+                };
+                for (s, p) in sum.iter_mut().zip(&pixels) {
+                    *s += *p;
+                }
+                film.pixels = sum.iter().map(|s| (*s / (pass + 1) as f64).as_vec3()).collect();
             }
             pass += 1;
             run_count += 1;
             pb.inc(1);
-            film.pixels = sum.iter().map(|s| (*s / pass as f64).as_vec3()).collect();
             on_pass(pass, budget.elapsed(), &film);
-            if !record {
-                save_checkpoint(
-                    &self.cfg,
-                    &self.prog,
-                    world,
-                    pass,
-                    &VcmState::Sums(sum.iter().map(|s| [s.x.to_bits(), s.y.to_bits(), s.z.to_bits()]).collect()),
-                )?;
+            if !record && self.prog.checkpoint_every.is_some_and(|k| pass.is_multiple_of(k)) {
+                let state = match use_sppm.as_ref() {
+                    Some(_) if pass < sppm_at => VcmState::Sppm(sppm_pilot[pass as usize - 1].1.clone()),
+                    Some(run) => VcmState::Sppm(run.state()),
+                    None => VcmState::Sums(sum.iter().map(|s| [s.x.to_bits(), s.y.to_bits(), s.z.to_bits()]).collect()),
+                };
+                save_checkpoint(&self.cfg, &self.prog, world, pass, &state)?;
             }
         }
         pb.finish_and_clear();
@@ -383,12 +374,13 @@ impl VcmIntegrator {
             return Ok((film, stats, strategies, pass));
         }
         let c = &mut self.counters;
+        let sppm_passes = if use_sppm.is_some() { run_count as f64 } else { 0.0 };
         if let Some(run) = use_sppm {
             let st = run.finish(pass, stats.seconds, c);
             stats.traversal.add(&st.traversal);
             stats.nonfinite_samples += st.nonfinite_samples;
         }
-        c.insert("sppm_passes".into(), if c.get("pilot_chose_sppm") == Some(&1.0) { run_count as f64 } else { 0.0 });
+        c.insert("sppm_passes".into(), sppm_passes);
         c.insert("passes".into(), pass as f64);
         c.insert("path_tracing_passes".into(), if use_path.is_some() { run_count as f64 } else { 0.0 });
         c.insert("light_phase_s".into(), times.light);
