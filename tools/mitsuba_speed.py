@@ -4,7 +4,9 @@
 Times both whole processes (start, scene load, build, render, image write) on the same
 scene file at the same resolution and sample count, runs alternating, and measures the
 relative MSE of each image against one high-spp Mitsuba reference (rendered once and
-kept: pass the same --ref path again to reuse it). Prints per run and in total
+kept: pass the same --ref path again to reuse it). Prints the machine first (CPU, its
+widest SIMD, which sets Dr.Jit's lane count, the load, Mitsuba's version), then per
+run and in total
 
     efficiency = (Mitsuba relMSE x seconds) / (photonlab relMSE x seconds)
 
@@ -61,6 +63,38 @@ def timed(cmd):
     return dt, (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
 
 
+def machine_line():
+    """CPU model, its widest vector instructions and the load: Dr.Jit's LLVM back end
+    compiles its kernels for the host's widest vectors (16 lanes with AVX-512, 8 with
+    AVX2), so the same two builds compare differently on different CPUs."""
+    model, fam, mod, flags = "unknown CPU", None, None, set()
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                k, _, v = line.partition(":")
+                k, v = k.strip(), v.strip()
+                if k == "model name":
+                    model = v
+                elif k == "cpu family":
+                    fam = v
+                elif k == "model":
+                    mod = v
+                elif k == "flags":
+                    flags = set(v.split())
+                    break
+    except OSError:
+        pass
+    simd = "avx512" if "avx512f" in flags else "avx2" if "avx2" in flags else "sse"
+    fm = f" (family {fam} model {mod})" if fam and mod else ""
+    try:
+        import mitsuba as mi
+
+        mver = f", Mitsuba {mi.__version__}"
+    except ImportError:
+        mver = ""
+    return f"machine: {model}{fm}, widest SIMD {simd}, {os.cpu_count()} logical CPUs, load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}{mver}"
+
+
 def mitsuba_cmd(a, spp, out):
     return [sys.executable, os.path.join(HERE, "mitsuba_compare.py"), a.scene, "--spp", str(spp), "--out", out, "--variant", a.variant]
 
@@ -112,6 +146,7 @@ def main():
     pl = [a.photonlab, "render", "--scene", a.scene, "--spp", str(a.spp), "--quiet", "-o", pl_out] + a.pl_arg
     if a.threads:
         pl += ["--threads", str(a.threads)]
+    print(machine_line(), flush=True)
     rows = []
     for run in range(a.runs):
         # Alternate which engine goes first, so a load change hits both alike.
@@ -138,6 +173,7 @@ def main():
         f"efficiency {(em * tm) / (ep * tp):.2f}x (per run {min(r[4] for r in rows):.2f}-{max(r[4] for r in rows):.2f}x), "
         f"by CPU time {(em * cm) / (ep * cp):.2f}x (per run {min(r[7] for r in rows):.2f}-{max(r[7] for r in rows):.2f}x)"
     )
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 if __name__ == "__main__":
     main()

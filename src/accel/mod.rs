@@ -51,6 +51,15 @@ pub trait Accel: Send + Sync {
     fn intersect(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit>;
     /// True when anything is hit with 0 < t < t_max (early exit).
     fn occluded(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool;
+    /// Closest hits of a stream of rays (each with its own t_max) into `out`, with up
+    /// to `k` rays in flight where the structure can interleave their traversals
+    /// (the same hits as [`Accel::intersect`] ray by ray, which is the default).
+    fn intersect_stream(&self, rays: &[(Ray, f32)], out: &mut [Option<Hit>], k: usize, stats: &mut TraversalStats) {
+        let _ = k;
+        for ((ray, t_max), o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.intersect(ray, *t_max, stats);
+        }
+    }
     /// Bytes used by the structure (nodes + its triangle copy).
     fn memory_bytes(&self) -> usize;
     /// SAH cost of the tree with node-visit and block-test costs 1, relative to the

@@ -51,6 +51,11 @@ pub struct AccelArgs {
     /// Print JSON lines (the harness's fields plus traversal counts) instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Also trace the camera and diffuse rays as streams with this many rays in flight
+    /// per thread (`api` = `stream<K>`; the wide BVHs interleave 2, 4 or 8 rays'
+    /// traversals, other values and accelerators trace one ray at a time).
+    #[arg(long, default_value_t = 0)]
+    pub stream: usize,
 }
 
 /// A triangle soup with the vertex list the camera is framed on.
@@ -356,6 +361,20 @@ pub enum Query {
     Closest,
     /// Any hit (`occluded1`).
     Any,
+    /// Closest hits through [`Accel::intersect_stream`] with this many rays in flight
+    /// (`stream<K>`).
+    Stream(usize),
+}
+
+impl Query {
+    /// The `api` field of a row (the harness's names for its own queries).
+    fn api(self) -> String {
+        match self {
+            Query::Closest => "intersect1".into(),
+            Query::Any => "occluded1".into(),
+            Query::Stream(k) => format!("stream{k}"),
+        }
+    }
 }
 
 /// CPU time consumed by the calling thread, seconds (None where unsupported).
@@ -386,7 +405,8 @@ pub struct TraceResult {
     pub stats: TraversalStats,
 }
 
-/// Traces `rays` one at a time over `threads` threads, each a contiguous range.
+/// Traces `rays` over `threads` threads, each a contiguous range (one ray at a time, or
+/// as a stream with `Query::Stream`).
 pub fn trace(accel: &dyn Accel, rays: &[BenchRay], query: Query, threads: usize) -> TraceResult {
     let threads = threads.max(1);
     let chunk = rays.len().div_ceil(threads).max(1);
@@ -403,6 +423,17 @@ pub fn trace(accel: &dyn Accel, rays: &[BenchRay], query: Query, threads: usize)
                         Query::Closest => {
                             for r in part {
                                 hits += accel.intersect(&Ray::new(r.o, r.d), r.tfar, &mut st).is_some() as u64;
+                            }
+                        }
+                        Query::Stream(k) => {
+                            // In runs of 1024 rays, as a renderer's batch would hand them over.
+                            let mut buf = Vec::with_capacity(1024);
+                            let mut out = vec![None; 1024];
+                            for c in part.chunks(1024) {
+                                buf.clear();
+                                buf.extend(c.iter().map(|r| (Ray::new(r.o, r.d), r.tfar)));
+                                accel.intersect_stream(&buf, &mut out[..c.len()], k, &mut st);
+                                hits += out[..c.len()].iter().filter(|h| h.is_some()).count() as u64;
                             }
                         }
                         Query::Any => {
@@ -484,7 +515,18 @@ pub fn build_accel(name: &str, tris: &[[Vec3; 3]], threads: usize, builds: usize
 
 /// Runs the whole benchmark for one mesh and camera placement: builds every
 /// accelerator, generates the rays with the first, times each set with each.
-pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool, threads: usize, builds: usize) -> Result<Vec<BenchRow>> {
+///
+/// With `stream` > 1 the camera and diffuse sets are also traced as streams with
+/// `stream` rays in flight (rows with `api` = `stream<K>`).
+pub fn run_mesh(
+    mesh: &BenchMesh,
+    accels: &[String],
+    nrays: usize,
+    inside: bool,
+    threads: usize,
+    builds: usize,
+    stream: usize,
+) -> Result<Vec<BenchRow>> {
     if accels.is_empty() {
         bail!("--accel: name at least one accelerator");
     }
@@ -509,9 +551,13 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
         t0.elapsed().as_secs_f64()
     );
     let mut rows = Vec::new();
-    for (set, rays, query) in
-        [("camera", &sets.camera, Query::Closest), ("diffuse", &sets.diffuse, Query::Closest), ("shadow", &sets.shadow, Query::Any)]
-    {
+    let mut cases =
+        vec![("camera", &sets.camera, Query::Closest), ("diffuse", &sets.diffuse, Query::Closest), ("shadow", &sets.shadow, Query::Any)];
+    if stream > 1 {
+        cases.insert(2, ("diffuse", &sets.diffuse, Query::Stream(stream)));
+        cases.insert(1, ("camera", &sets.camera, Query::Stream(stream)));
+    }
+    for (set, rays, query) in cases {
         if rays.is_empty() {
             continue;
         }
@@ -523,7 +569,7 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
                 scene: scene.clone(),
                 triangles: mesh.tris.len(),
                 rays: set.into(),
-                api: if query == Query::Closest { "intersect1" } else { "occluded1" }.into(),
+                api: query.api(),
                 threads,
                 build_s: *build_s,
                 mrays_per_s: n / r.secs.max(1e-12) * 1e-6,
@@ -544,10 +590,11 @@ pub fn run_mesh(mesh: &BenchMesh, accels: &[String], nrays: usize, inside: bool,
 /// Prints rows as an aligned table.
 pub fn print_table(rows: &[BenchRow]) {
     outln!(
-        "{:<24} {:<18} {:<8} {:>3} {:>9} {:>9} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
+        "{:<24} {:<18} {:<8} {:<10} {:>3} {:>9} {:>9} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
         "scene",
         "engine",
         "rays",
+        "api",
         "thr",
         "Mrays/s",
         "cpu Mr/s",
@@ -560,10 +607,11 @@ pub fn print_table(rows: &[BenchRow]) {
     );
     for r in rows {
         outln!(
-            "{:<24} {:<18} {:<8} {:>3} {:>9.3} {:>9.3} {:>8.4} {:>9} {:>8.1} {:>8.2} {:>8.3} {:>7.1}",
+            "{:<24} {:<18} {:<8} {:<10} {:>3} {:>9.3} {:>9.3} {:>8.4} {:>9} {:>8.1} {:>8.2} {:>8.3} {:>7.1}",
             r.scene,
             r.engine,
             r.rays,
+            r.api,
             r.threads,
             r.mrays_per_s,
             r.cpu_mrays_per_s,
@@ -590,7 +638,10 @@ pub fn run(a: &AccelArgs) -> Result<()> {
     if let Some(n) = &a.name {
         mesh.name = n.clone();
     }
-    let rows = run_mesh(&mesh, &a.accel, a.rays, a.inside, a.threads, a.builds)?;
+    if a.stream > 64 {
+        bail!("--stream: at most 64 rays in flight, got {}", a.stream);
+    }
+    let rows = run_mesh(&mesh, &a.accel, a.rays, a.inside, a.threads, a.builds, a.stream)?;
     if a.json {
         for r in &rows {
             outln!("{}", serde_json::to_string(r)?);
@@ -649,6 +700,13 @@ mod tests {
         assert_eq!(trace(acc.as_ref(), &s.diffuse, Query::Closest, 2).hits, 1000);
         assert_eq!(s.shadow.len(), 1000);
         assert_eq!(trace(acc.as_ref(), &s.shadow, Query::Any, 1).hits, 0);
+        // Streams: the same hits and traversal counts as one ray at a time.
+        let w = registry::make_accel("bvh8", &mesh.tris).unwrap();
+        let one = trace(w.as_ref(), &s.diffuse, Query::Closest, 1);
+        for k in [2, 4, 8] {
+            let st = trace(w.as_ref(), &s.diffuse, Query::Stream(k), 2);
+            assert_eq!((st.hits, st.stats), (one.hits, one.stats), "stream{k}");
+        }
         for r in &s.shadow {
             assert!(r.tfar > 0.0 && r.tfar.is_finite() && !acc.occluded(&Ray::new(r.o, r.d), r.tfar, &mut st));
         }

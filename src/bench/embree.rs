@@ -205,10 +205,10 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
             for &t in &a.threads {
                 // Back to back, so both engines see the same machine load.
                 let mut emb = run_harness(&harness, path, inside, t, a.rays)?;
-                let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1)?;
+                let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, 0)?;
                 let mut paired = vec![pair_rows(&emb, &ours)];
                 for _ in 1..a.repeats {
-                    let (e, o) = (run_harness(&harness, path, inside, t, a.rays)?, run_mesh(&mesh, &a.accel, a.rays, inside, t, 1)?);
+                    let (e, o) = (run_harness(&harness, path, inside, t, a.rays)?, run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, 0)?);
                     paired.push(pair_rows(&e, &o));
                     keep_best_embree(&mut emb, e);
                     keep_best_ours(&mut ours, o);

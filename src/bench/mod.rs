@@ -64,6 +64,7 @@ fn run_all(json: bool) -> Result<()> {
             builds: 1,
             name: None,
             json,
+            stream: 8,
         })?;
     }
     // The kd-tree-vs-kiddo comparison needs the optional `kiddo` feature; without it

@@ -37,11 +37,13 @@
 //! nodes), [`ray`] (per-ray values), [`node_test`] (the box test per SIMD level,
 //! portable lane loops), `x86` (the explicit x86 instructions), [`stack`],
 //! [`traverse`] (the traversal loops and the [`crate::accel::Accel`] impl),
+//! [`interleave`] (closest hits of a ray stream, several rays' traversals interleaved),
 //! [`cpu`] (SIMD level detection, huge pages). This file: the tree type and its
 //! build. The plug-ins `bvh4`, `bvh8` and `bvh8q` name its configurations.
 
 mod collapse;
 mod cpu;
+mod interleave;
 mod node;
 mod node_test;
 mod qnode;

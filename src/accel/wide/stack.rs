@@ -22,6 +22,11 @@ impl<const C: usize> Stack<C> {
     pub(super) fn new() -> Self {
         Stack { items: [const { MaybeUninit::uninit() }; C], len: 0 }
     }
+    /// Empties the stack.
+    #[inline(always)]
+    pub(super) fn clear(&mut self) {
+        self.len = 0;
+    }
     #[inline(always)]
     pub(super) fn push(&mut self, v: (u32, f32)) {
         // Bounds-checked: the build bounds the depth, so this never fails.

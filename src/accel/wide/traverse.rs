@@ -16,7 +16,7 @@ use crate::accel::{Accel, TraversalStats};
 use crate::geometry::{Hit, Ray};
 
 /// Stack capacity for the widest tree (N = 8).
-const STACK: usize = 7 * MAX_DEPTH + 8;
+pub(super) const STACK: usize = 7 * MAX_DEPTH + 8;
 
 /// The closest-hit and any-hit entry points of one traversal level, compiled with
 /// that level's target features (the `#[inline(always)]` traversal is compiled
@@ -237,7 +237,7 @@ impl<const N: usize> WideBvh<N> {
     /// Tests the ray against the children of interior node `cur`: the hit mask
     /// (entry distances in `tmin`) and the child references.
     #[inline(always)]
-    fn visit<const L: u8, const Q: bool>(&self, cur: u32, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> (u32, &[u32; N]) {
+    pub(super) fn visit<const L: u8, const Q: bool>(&self, cur: u32, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> (u32, &[u32; N]) {
         if Q {
             debug_assert!((cur as usize) < self.qnodes.len());
             // SAFETY: as in `node`, for the quantised copy of the node array.
@@ -261,7 +261,7 @@ impl<const N: usize> WideBvh<N> {
     /// Starts fetching a stacked child (its node's four lines or its triangle block),
     /// so that the memory latency overlaps the traversal of the nearer children.
     #[inline(always)]
-    fn prefetch<const Q: bool>(&self, child: u32) {
+    pub(super) fn prefetch<const Q: bool>(&self, child: u32) {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
@@ -324,6 +324,10 @@ impl<const N: usize> Accel for WideBvh<N> {
         } else {
             self.occluded_impl::<PORTABLE, false>(ray, t_max, stats)
         }
+    }
+
+    fn intersect_stream(&self, rays: &[(Ray, f32)], out: &mut [Option<Hit>], k: usize, stats: &mut TraversalStats) {
+        self.interleaved(rays, out, k, stats)
     }
 
     fn memory_bytes(&self) -> usize {
