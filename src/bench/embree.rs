@@ -55,6 +55,10 @@ pub struct EmbreeArgs {
     /// Print JSON lines (both engines' figures and the ratio) instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Also trace the diffuse rays as a stream with this many in flight (`bench accel
+    /// --stream`), compared with the harness's 8-ray packets (`rtcIntersect8`).
+    #[arg(long, default_value_t = 0)]
+    pub stream: usize,
 }
 
 /// One compared row.
@@ -64,6 +68,9 @@ pub struct CompareRow {
     pub scene: String,
     /// `camera`, `diffuse` or `shadow`.
     pub rays: String,
+    /// The queries compared, photonlab's / Embree's (`intersect1`, `occluded1`,
+    /// `stream8/intersect8`).
+    pub api: String,
     /// Threads.
     pub threads: usize,
     /// photonlab engine (`photonlab-<accel>`).
@@ -205,10 +212,11 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
             for &t in &a.threads {
                 // Back to back, so both engines see the same machine load.
                 let mut emb = run_harness(&harness, path, inside, t, a.rays)?;
-                let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, 0)?;
+                let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, a.stream)?;
                 let mut paired = vec![pair_rows(&emb, &ours)];
                 for _ in 1..a.repeats {
-                    let (e, o) = (run_harness(&harness, path, inside, t, a.rays)?, run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, 0)?);
+                    let (e, o) =
+                        (run_harness(&harness, path, inside, t, a.rays)?, run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, a.stream)?);
                     paired.push(pair_rows(&e, &o));
                     keep_best_embree(&mut emb, e);
                     keep_best_ours(&mut ours, o);
@@ -291,18 +299,27 @@ fn keep_best_ours(best: &mut [BenchRow], new: Vec<BenchRow>) {
     }
 }
 
-/// Matches our rows with the harness's one-ray-at-a-time rows (its `intersect8`
-/// packet row has no counterpart).
+/// Matches our rows with the harness's: one ray at a time with its one-ray rows, our
+/// streams with its 8-ray packets (`intersect8`, diffuse rays only; camera streams
+/// have no counterpart).
 fn pair_rows(emb: &[serde_json::Value], ours: &[BenchRow]) -> Vec<CompareRow> {
     let mut out = Vec::new();
     for r in ours {
-        let api = if r.rays == "shadow" { "occluded1" } else { "intersect1" };
+        let stream = r.api.starts_with("stream");
+        let api = if stream {
+            "intersect8"
+        } else if r.rays == "shadow" {
+            "occluded1"
+        } else {
+            "intersect1"
+        };
         let Some(e) = emb.iter().find(|e| e["rays"] == r.rays.as_str() && e["api"] == api) else { continue };
         let f = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
         let ratio = r.mrays_per_s / f("mrays_per_s");
         out.push(CompareRow {
             scene: r.scene.clone(),
             rays: r.rays.clone(),
+            api: if stream { format!("{}/{api}", r.api) } else { api.to_string() },
             threads: r.threads,
             engine: r.engine.clone(),
             embree_mrays_per_s: f("mrays_per_s"),
@@ -321,9 +338,10 @@ fn pair_rows(emb: &[serde_json::Value], ours: &[BenchRow]) -> Vec<CompareRow> {
 
 fn print_header() {
     outln!(
-        "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13} | {:>16} | {:>6} | {:>17} | {:>9} | {:>9} |",
+        "| {:<23} | {:<7} | {:<18} | {:>3} | {:<15} | {:>13} | {:>16} | {:>6} | {:>17} | {:>9} | {:>9} |",
         "scene",
         "rays",
+        "api",
         "thr",
         "engine",
         "Embree Mrays/s",
@@ -333,14 +351,15 @@ fn print_header() {
         "hit (E)",
         "hit (p)"
     );
-    outln!("|---|---|---:|---|---:|---:|---:|---:|---:|---:|");
+    outln!("|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|");
 }
 
 fn print_row(r: &CompareRow) {
     outln!(
-        "| {:<23} | {:<7} | {:>3} | {:<15} | {:>13.2} | {:>16.2} | {:>6.2} | {:>17} | {:>9.4} | {:>9.4} |",
+        "| {:<23} | {:<7} | {:<18} | {:>3} | {:<15} | {:>13.2} | {:>16.2} | {:>6.2} | {:>17} | {:>9.4} | {:>9.4} |",
         r.scene,
         r.rays,
+        r.api,
         r.threads,
         r.engine,
         r.embree_mrays_per_s,
@@ -370,6 +389,7 @@ mod tests {
             cases: vec![],
             repeats: 1,
             json: false,
+            stream: 0,
         };
         let e = locate_harness(&a).unwrap_err().to_string();
         assert!(e.contains("nowhere") && e.contains("--harness-dir") && e.contains("not part of the repository"), "{e}");
@@ -399,7 +419,7 @@ mod tests {
             scene: "x".into(),
             triangles: 1,
             rays: rays.into(),
-            api: "intersect1".into(),
+            api: if rays == "shadow" { "occluded1" } else { "intersect1" }.into(),
             threads: 1,
             build_s: 0.1,
             mrays_per_s: m,
@@ -415,7 +435,12 @@ mod tests {
         let p = pair_rows(&emb, &[row("camera", 5.0), row("diffuse", 6.0), row("shadow", 1.0)]);
         assert_eq!(p.len(), 2, "shadow has no Embree row here");
         assert_eq!((p[0].rays.as_str(), p[0].ratio), ("camera", 0.5));
-        assert_eq!((p[1].rays.as_str(), p[1].ratio), ("diffuse", 1.5), "intersect8 must not be paired");
+        assert_eq!((p[1].rays.as_str(), p[1].ratio), ("diffuse", 1.5), "intersect8 must not be paired with one ray at a time");
+        // A stream is paired with the packets, and only for the diffuse rays.
+        let stream = |rays: &str, m: f64| BenchRow { api: "stream8".into(), ..row(rays, m) };
+        let p = pair_rows(&emb, &[stream("camera", 5.0), stream("diffuse", 198.0)]);
+        assert_eq!(p.len(), 1, "camera streams have no Embree row");
+        assert_eq!((p[0].rays.as_str(), p[0].api.as_str(), p[0].ratio), ("diffuse", "stream8/intersect8", 2.0));
     }
 
     #[test]
@@ -423,6 +448,7 @@ mod tests {
         let row = |rays: &str, ratio: f64| CompareRow {
             scene: "x".into(),
             rays: rays.into(),
+            api: "intersect1".into(),
             threads: 1,
             engine: "photonlab-bvh8".into(),
             embree_mrays_per_s: 1.0,
@@ -467,6 +493,7 @@ mod tests {
             cases: vec![],
             repeats: 1,
             json: false,
+            stream: 0,
         };
         let e = run(&a).unwrap_err().to_string();
         assert!(e.contains("nowhere") && e.contains("--harness-dir"), "{e}");
