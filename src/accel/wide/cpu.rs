@@ -1,10 +1,12 @@
 //! What the machine offers the traversal: the SIMD level (run-time CPU detection,
 //! overridable by `PHOTONLAB_SIMD`) and huge-page backed node arrays.
 
-/// Instruction set of the traversal. The AVX-512 level runs the integer-compare
-/// node test (`x86::node_test8`), whose comparisons LLVM compiles to mask
-/// registers (1.03–1.05× faster than the AVX2 level on this Zen 5, see README); the
-/// AVX2 level keeps the float test, as the integer form measured 0.94–1.0× there.
+/// Instruction set of the traversal. Both x86 levels run the integer-compare node
+/// test of `bvh8` (`x86::node_test8`), whose per-axis error margins keep culling
+/// nearly axis-parallel rays (the float test's one margin per ray grew with the
+/// largest o·inv and let them visit 2.4× the nodes); at the AVX-512 level LLVM
+/// compiles its comparisons to mask registers (1.03–1.05× faster than the AVX2
+/// level on a Zen 5, docs/benchmarks.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 #[repr(u8)]
 pub(super) enum Simd {

@@ -65,9 +65,9 @@ impl<const N: usize> WideBvh<N> {
 
     /// Puts ray `idx` into `lane` (in place: the stack is not moved).
     #[inline(always)]
-    fn start(&self, lane: &mut Lane, rays: &[(Ray, f32)], idx: usize) {
+    fn start<const L: u8>(&self, lane: &mut Lane, rays: &[(Ray, f32)], idx: usize) {
         let (ray, t_max) = rays[idx];
-        lane.r = RayPre::new::<N>(&ray);
+        lane.r = self.ray_pre::<L, false>(&ray);
         lane.ray = ray;
         lane.best = None;
         lane.t_best = t_max;
@@ -97,7 +97,7 @@ impl<const N: usize> WideBvh<N> {
         let mut next = 0usize;
         for (lane, a) in lanes.iter_mut().zip(active.iter_mut()) {
             if next < rays.len() {
-                self.start(lane, rays, next);
+                self.start::<L>(lane, rays, next);
                 *a = true;
                 next += 1;
             }
@@ -113,7 +113,7 @@ impl<const N: usize> WideBvh<N> {
                 stats.node_tests += lane.node_tests;
                 stats.tri_tests += lane.tri_tests;
                 if next < rays.len() {
-                    self.start(lane, rays, next);
+                    self.start::<L>(lane, rays, next);
                     next += 1;
                 } else {
                     *a = false;

@@ -2,7 +2,7 @@
 //! vectorises) and the dispatch to the explicit x86 instructions of [`super::x86`].
 
 #[cfg(target_arch = "x86_64")]
-use super::cpu::{AVX2, AVX512};
+use super::cpu::AVX2;
 use super::node::Node;
 use super::qnode::QNode;
 use super::ray::{ROBUST, RayPre};
@@ -23,15 +23,10 @@ pub(super) fn node_test<const N: usize, const L: u8>(n: &Node<N>, r: &RayPre, t_
         let base = n as *const Node<N> as *const u8;
         // In bounds: every offset addresses one of the node's six plane arrays.
         let planes = r.planes.map(|off| base.wrapping_add(off) as *const f32);
-        if N == 8 && L == AVX512 {
-            // SAFETY: L is AVX512 only inside the AVX-512 traversal (CPU checked at
+        if N == 8 && L >= AVX2 {
+            // SAFETY: L is AVX2 or AVX512 only inside those traversals (CPU checked at
             // build), and every plane array holds N = 8 floats, as does `tmin`.
             return unsafe { x86::node_test8(&planes, r, t_max, tmin.as_mut_ptr()) };
-        }
-        if N == 8 && L == AVX2 {
-            // SAFETY: L is AVX2 only inside the AVX2 traversal (CPU checked at build),
-            // and every plane array holds N = 8 floats, as does `tmin`.
-            return unsafe { x86::node_test8_float(&planes, r, t_max, tmin.as_mut_ptr()) };
         }
         if N == 4 && L >= AVX2 {
             // SAFETY: as above, with N = 4.

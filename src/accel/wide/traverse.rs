@@ -222,13 +222,13 @@ impl<const N: usize> WideBvh<N> {
 
     /// Per-ray values; with quantised nodes the slack also covers their rounding.
     #[inline(always)]
-    fn ray_pre<const L: u8, const Q: bool>(&self, ray: &Ray) -> RayPre {
+    pub(super) fn ray_pre<const L: u8, const Q: bool>(&self, ray: &Ray) -> RayPre {
         let mut r = RayPre::new::<N>(ray);
         if Q {
             let qpick = |a: usize, near: bool| if r.neg[a] == near { (3 + a) * N } else { a * N };
             r.qplanes = [qpick(0, true), qpick(1, true), qpick(2, true), qpick(0, false), qpick(1, false), qpick(2, false)];
             r.slack += QNode::<N>::slack(r.o, r.inv, self.cmax);
-        } else if L == AVX512 {
+        } else if L >= AVX2 && N == 8 {
             r.fast_planes(self.cmax);
         }
         r

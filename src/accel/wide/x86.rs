@@ -7,26 +7,6 @@ use super::ray::{FAR_WIDEN, ROBUST, RayPre};
 use super::stack::Entry;
 use std::arch::x86_64::*;
 
-/// 8 lanes with AVX2/FMA, compared as floats (the AVX2 level: there the integer
-/// form of [`node_test8`] measured 0.94–1.0×): t = plane·inv − o·inv in one
-/// fused operation per plane, the far distance widened by [`ROBUST`] and the
-/// ray's absolute `slack`. Safety: as [`node_test8`].
-#[inline(always)]
-pub(super) unsafe fn node_test8_float(planes: &[*const f32; 6], r: &RayPre, t_max: f32, tmin: *mut f32) -> u32 {
-    // SAFETY: the caller's guarantees (AVX2/FMA; 8 floats behind every pointer).
-    unsafe {
-        slabs8(
-            |k| {
-                let a = k % 3;
-                _mm256_fmsub_ps(_mm256_loadu_ps(planes[k]), _mm256_set1_ps(r.inv[a]), _mm256_set1_ps(r.oi[a]))
-            },
-            r,
-            t_max,
-            tmin,
-        )
-    }
-}
-
 /// 8 lanes with AVX2/FMA: t = plane·c − b in one fused operation per plane
 /// (measured 1.1–1.3× faster traversal than subtract-then-multiply), with the
 /// widening folded into c and b ([`RayPre::fast_planes`]). The distances are
@@ -34,8 +14,8 @@ pub(super) unsafe fn node_test8_float(planes: &[*const f32; 6], r: &RayPre, t_ma
 /// put every negative float below +0: the entry distance max(near, +0) and a
 /// negative far distance (box behind the origin) come out right, and the folds
 /// form trees of integer min/max (shorter than the float test's chain, and
-/// compiled with AVX-512 into a mask-register compare; this is the AVX-512 level's
-/// test). An empty lane (box +∞…−∞) gets entry +∞ and exit −∞ from any axis with
+/// compiled with AVX-512 into a mask-register compare; this is the `bvh8` test of
+/// both x86 levels). An empty lane (box +∞…−∞) gets entry +∞ and exit −∞ from any axis with
 /// a non-zero coefficient; a parallel axis (coefficient 0) gives 0·∞ = NaN, which
 /// the integer folds never prefer to those, and if all three are parallel, NaN
 /// entry and exit still fail the comparison, so it is never entered. Safety: the CPU must
