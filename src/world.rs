@@ -29,9 +29,6 @@ pub struct World {
     /// operations `interaction` used per hit (same bits). Triangles with vertex
     /// normals read only its `ng`.
     flat: Vec<ShadingPoint>,
-    /// Rays in flight when a batch of closest hits is traced ([`World::first_hits`]),
-    /// [`crate::accel::stream_width`] of the accelerator.
-    pub stream_width: usize,
 }
 
 /// Everything an integrator needs about a surface hit.
@@ -80,15 +77,7 @@ impl World {
                 ShadingPoint::new(ng, ng)
             })
             .collect();
-        let stream_width = crate::accel::stream_width(accel.as_ref());
-        Ok(World { scene, accel, lights, tex_bindings, tex_ranges, flat, stream_width })
-    }
-
-    /// Closest hits of a batch of independent rays (unbounded), the same as
-    /// [`World::intersect`] ray by ray, traced [`World::stream_width`] at a time.
-    #[inline]
-    pub fn first_hits(&self, rays: &[(Ray, f32)], out: &mut [Option<Hit>], stats: &mut TraversalStats) {
-        self.accel.intersect_stream(rays, out, self.stream_width, stats);
+        Ok(World { scene, accel, lights, tex_bindings, tex_ranges, flat })
     }
 
     /// Closest hit along `ray`.

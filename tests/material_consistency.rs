@@ -104,7 +104,10 @@ fn cases() -> Vec<(&'static str, RenderConfig, f64)> {
         ("bdpt", base("bdpt", 16, 3), 0.06),
         ("photon", base("photon", 8, 4).with("photons", 300_000), 0.06),
         ("photon gather=direct", base("photon", 8, 4).with("photons", 300_000).with("gather", "direct"), 0.08),
-        ("photon gather=final_gather", base("photon", 4, 4).with("photons", 300_000).with("gather", "final_gather"), 0.08),
+        // 16 samples: at 4 the worst block's noise alone spread ±0.05 over seeds 4–9
+        // (+0.086 at seed 4 on one CPU, −0.049…+0.016 at the others), so 0.08 judged
+        // the draw rather than the bias; at 16 seeds 4 and 5 give +0.014 and −0.032.
+        ("photon gather=final_gather", base("photon", 16, 4).with("photons", 300_000).with("gather", "final_gather"), 0.08),
         ("photon gather=precomputed", base("photon", 8, 4).with("photons", 300_000).with("gather", "precomputed"), 0.06),
         ("sppm", base("sppm", 1, 5).with("passes", 32), 0.06),
         ("ppm", base("ppm", 1, 6).with("passes", 8).with("photons", 100_000), 0.08),

@@ -74,39 +74,6 @@ pub trait Accel: Send + Sync {
     }
 }
 
-/// Rays in flight for [`Accel::intersect_stream`] where a caller has a batch of
-/// independent rays: 8 when the structure is larger than the processor's last-level
-/// cache (its traversal then waits on memory, and 8 interleaved rays traced a
-/// 55.6 MB tree 1.6× faster), else 1 (where the tree fits the caches, interleaving's
-/// bookkeeping made it 0.72–1.0× as fast; docs/benchmarks.md). 1 where the cache size
-/// is unknown.
-pub fn stream_width(accel: &dyn Accel) -> usize {
-    match last_level_cache_bytes() {
-        Some(llc) if accel.memory_bytes() > llc => 8,
-        _ => 1,
-    }
-}
-
-/// Size of the largest CPU cache, from Linux's sysfs (None elsewhere or unreadable).
-pub fn last_level_cache_bytes() -> Option<usize> {
-    static LLC: std::sync::OnceLock<Option<usize>> = std::sync::OnceLock::new();
-    *LLC.get_or_init(|| {
-        let dir = std::fs::read_dir("/sys/devices/system/cpu/cpu0/cache").ok()?;
-        dir.filter_map(|e| std::fs::read_to_string(e.ok()?.path().join("size")).ok()).filter_map(|t| parse_cache_size(t.trim())).max()
-    })
-}
-
-/// A sysfs cache size ("32768K", "1M", "512").
-fn parse_cache_size(t: &str) -> Option<usize> {
-    let (num, mul) = match t.chars().last()? {
-        'K' => (&t[..t.len() - 1], 1 << 10),
-        'M' => (&t[..t.len() - 1], 1 << 20),
-        'G' => (&t[..t.len() - 1], 1 << 30),
-        _ => (t, 1),
-    };
-    num.parse::<usize>().ok().map(|n| n * mul)
-}
-
 /// Triangle in the form the intersection test wants.
 #[derive(Clone, Copy, Debug)]
 pub struct PreTriangle {
@@ -123,17 +90,5 @@ impl PreTriangle {
     #[inline]
     pub fn new(t: &[Vec3; 3]) -> Self {
         PreTriangle { v0: t[0], e1: t[1] - t[0], e2: t[2] - t[0] }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn cache_sizes_parse() {
-        assert_eq!(super::parse_cache_size("32768K"), Some(32 << 20));
-        assert_eq!(super::parse_cache_size("1M"), Some(1 << 20));
-        assert_eq!(super::parse_cache_size("512"), Some(512));
-        assert_eq!(super::parse_cache_size("x"), None);
-        assert_eq!(super::parse_cache_size(""), None);
     }
 }

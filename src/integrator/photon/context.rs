@@ -240,25 +240,11 @@ impl PhotonContext {
     }
 
     /// [`PhotonContext::follow_specular`] with the chain's distances.
-    pub fn follow_specular_path(&self, world: &World, ray: Ray, key: ShadeKey, stats: &mut TraversalStats) -> Option<SpecularPath> {
-        let first = world.intersect(&ray, stats);
-        self.follow_specular_from(world, ray, first, key, stats)
-    }
-
-    /// [`PhotonContext::follow_specular_path`] given the ray's first hit, traced
-    /// before (in a batch).
-    fn follow_specular_from(
-        &self,
-        world: &World,
-        mut ray: Ray,
-        mut first: Option<Interaction>,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> Option<SpecularPath> {
+    pub fn follow_specular_path(&self, world: &World, mut ray: Ray, key: ShadeKey, stats: &mut TraversalStats) -> Option<SpecularPath> {
         let mut w = Color::ONE;
         let (mut first_dist, mut length) = (0.0f32, 0.0f32);
         for d in 0..MAX_SPECULAR {
-            let it = if d == 0 { first.take()? } else { world.intersect(&ray, stats)? };
+            let it = world.intersect(&ray, stats)?;
             let seg = it.t * ray.d.length();
             if d == 0 {
                 first_dist = seg;
@@ -302,21 +288,7 @@ impl PhotonContext {
     /// radiance: the environment seen from the gathering point is its direct light
     /// (light sampling), and seen through mirrors and glass its caustic.
     pub fn gather_ray(&self, world: &World, ray: Ray, level: usize, key: ShadeKey, stats: &mut TraversalStats) -> (Color, f32) {
-        let first = world.intersect(&ray, stats);
-        self.gather_ray_from(world, ray, first, level, key, stats)
-    }
-
-    /// [`PhotonContext::gather_ray`] given the ray's first hit, traced before.
-    fn gather_ray_from(
-        &self,
-        world: &World,
-        ray: Ray,
-        first: Option<Interaction>,
-        level: usize,
-        key: ShadeKey,
-        stats: &mut TraversalStats,
-    ) -> (Color, f32) {
-        let Some(sp) = self.follow_specular_from(world, ray, first, key, stats) else { return (Color::ZERO, f32::INFINITY) };
+        let Some(sp) = self.follow_specular_path(world, ray, key, stats) else { return (Color::ZERO, f32::INFINITY) };
         let hb = &*world.bsdf_at(&sp.it);
         let l = if level + 1 < self.gather_counts.len() {
             self.shade(&GatherPoint { world, it: &sp.it, wo: sp.wo, bsdf: hb, key, pixel: None }, level + 1, stats, false)
@@ -350,47 +322,16 @@ impl PhotonContext {
         let s = &self.gather_samplers[level];
         let frame = Frame::new(facing_shading_normal(it, wo));
         let (mut irr, mut inv_d) = (Color::ZERO, 0.0f32);
-        // The ray of index j, or None where it would leave on the wrong side.
-        let ray_of = |j: u32| {
+        for j in 0..n {
             let mut u = [0.0f32; 2];
             s.values_at(stream, first + j as u64, 0, &mut u);
             let wi = frame.to_world(cosine_hemisphere(u));
-            (wi.dot(it.sp.ng) * wo.dot(it.sp.ng) > 0.0).then(|| world.spawn(it, wi))
-        };
-        if world.stream_width <= 1 {
-            for j in 0..n {
-                let Some(ray) = ray_of(j) else { continue };
-                let (l, dist) = self.gather_ray(world, ray, level, key.child(j as u64 + 1), stats);
-                inv_d += 1.0 / dist.max(1e-6);
-                irr += l;
+            if wi.dot(it.sp.ng) * wo.dot(it.sp.ng) <= 0.0 {
+                continue;
             }
-        } else {
-            // A tree larger than the caches: the first hits of up to BATCH rays traced
-            // as one stream (several in flight), then each ray shaded in index order,
-            // so sums, hits and counters are those of the loop above.
-            const BATCH: usize = 16;
-            let mut rays = [(Ray::new(Vec3::ZERO, Vec3::X), f32::INFINITY); BATCH];
-            let mut index = [0u32; BATCH];
-            let mut hits = [None; BATCH];
-            let mut j = 0;
-            while j < n {
-                let mut m = 0;
-                while m < BATCH && j < n {
-                    if let Some(ray) = ray_of(j) {
-                        (rays[m], index[m]) = ((ray, f32::INFINITY), j);
-                        m += 1;
-                    }
-                    j += 1;
-                }
-                world.first_hits(&rays[..m], &mut hits[..m], stats);
-                for q in 0..m {
-                    let ray = rays[q].0;
-                    let first = hits[q].map(|h| world.interaction(&ray, &h));
-                    let (l, dist) = self.gather_ray_from(world, ray, first, level, key.child(index[q] as u64 + 1), stats);
-                    inv_d += 1.0 / dist.max(1e-6);
-                    irr += l;
-                }
-            }
+            let (l, dist) = self.gather_ray(world, world.spawn(it, wi), level, key.child(j as u64 + 1), stats);
+            inv_d += 1.0 / dist.max(1e-6);
+            irr += l;
         }
         // Cosine-weighted: E ≈ π/N Σ L. Rays that escape count as infinitely far.
         let harmonic_distance = if inv_d > 0.0 { n as f32 / inv_d } else { f32::INFINITY };
@@ -462,35 +403,6 @@ pub fn pick_branch(br: &[(Vec3, Color)], u: f32) -> Option<(Vec3, Color)> {
 #[cfg(test)]
 mod tests {
     use super::PixelSplit;
-
-    /// A final gather whose first hits are traced in batches with several rays in
-    /// flight (what a tree larger than the caches gets) renders the image of the
-    /// one-ray-at-a-time loop bit for bit, with the same traversal counts: `final_gather`
-    /// and `precomputed`, over mirrors and glass (the specular chain after a batched
-    /// first hit), one and two gather levels.
-    #[test]
-    fn batched_gather_rays_render_the_same_image() {
-        use crate::config::RenderConfig;
-        use crate::integrator::render::render;
-        use crate::pipeline::{configured_scene, prepare};
-        for (gather, bounces) in [("final_gather", 1), ("precomputed", 1), ("final_gather", 2)] {
-            let cfg = RenderConfig { integrator: "photon".into(), seed: 3, spp: 2, resolution: Some([12, 12]), ..Default::default() }
-                .with("gather", gather)
-                .with("gather_bounces", bounces)
-                .with("photons", 8_000)
-                .with("caustic_photons", 2_000);
-            let scene = configured_scene(crate::scene::builtin::builtin("cornell-glass").unwrap(), &cfg).unwrap();
-            let mut p = prepare(scene, &cfg, true).unwrap();
-            p.world.stream_width = 1;
-            let (a, sa) = render(&p.world, p.integrator.as_ref(), p.sampler.as_ref(), cfg.spp, true);
-            p.world.stream_width = 8;
-            let (b, sb) = render(&p.world, p.integrator.as_ref(), p.sampler.as_ref(), cfg.spp, true);
-            assert!(a.pixels.iter().any(|c| c.max_element() > 0.0));
-            let bits = |f: &crate::film::Film| f.pixels.iter().flat_map(|c| c.to_array().map(f32::to_bits)).collect::<Vec<_>>();
-            assert!(bits(&a) == bits(&b), "{gather} × {bounces}: images differ");
-            assert_eq!(sa.traversal, sb.traversal, "{gather} × {bounces}");
-        }
-    }
 
     #[test]
     fn pixel_split_gives_each_sample_at_least_its_share() {
