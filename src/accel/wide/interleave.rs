@@ -147,46 +147,11 @@ impl<const N: usize> WideBvh<N> {
                     s.cur = child[near];
                     return true;
                 }
-                let mut hits: [(u32, f32); N] = [(0, 0.0); N];
-                hits[0] = (child[i], tmin[i]);
-                let mut k = 1;
-                while mask != 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let e = (child[i], tmin[i]);
-                    let mut j = k;
-                    while j > 0 && hits[j - 1].1 < e.1 {
-                        hits[j] = hits[j - 1];
-                        j -= 1;
-                    }
-                    hits[j] = e;
-                    k += 1;
-                }
-                for h in &hits[..k - 1] {
-                    self.prefetch::<false>(h.0);
-                    s.stack.push(*h);
-                }
-                s.cur = hits[k - 1].0;
+                s.cur = self.push_sorted::<false>(i, mask, tmin, child, &mut s.stack);
                 return true;
             }
         } else {
-            for block in self.leaf(s.cur) {
-                s.tri_tests += 4;
-                let (mut mask, t, u, v) = block.intersect(s.ray.o, s.ray.d, s.t_best);
-                if mask != 0 {
-                    let mut j = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    while mask != 0 {
-                        let k = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        if t[k] < t[j] {
-                            j = k;
-                        }
-                    }
-                    s.t_best = t[j];
-                    s.best = Some(Hit { t: t[j], tri: block.id[j], b1: u[j], b2: v[j] });
-                }
-            }
+            s.tri_tests += self.leaf_closest(s.cur, s.ray.o, s.ray.d, &mut s.t_best, &mut s.best);
         }
         loop {
             match s.stack.pop() {

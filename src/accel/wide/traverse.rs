@@ -14,6 +14,7 @@ use super::x86;
 use super::{MAX_DEPTH, WideBvh};
 use crate::accel::{Accel, TraversalStats};
 use crate::geometry::{Hit, Ray};
+use glam::Vec3;
 
 /// Stack capacity for the widest tree (N = 8).
 pub(super) const STACK: usize = 7 * MAX_DEPTH + 8;
@@ -109,48 +110,11 @@ impl<const N: usize> WideBvh<N> {
                         }
                         continue;
                     }
-                    let mut hits: [(u32, f32); N] = [(0, 0.0); N];
-                    hits[0] = (child[i], tmin[i]);
-                    let mut k = 1;
-                    while mask != 0 {
-                        let i = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        let e = (child[i], tmin[i]);
-                        // Insertion sort, descending by distance.
-                        let mut j = k;
-                        while j > 0 && hits[j - 1].1 < e.1 {
-                            hits[j] = hits[j - 1];
-                            j -= 1;
-                        }
-                        hits[j] = e;
-                        k += 1;
-                    }
-                    for h in &hits[..k - 1] {
-                        self.prefetch::<Q>(h.0);
-                        stack.push(*h);
-                    }
-                    cur = hits[k - 1].0;
+                    cur = self.push_sorted::<Q>(i, mask, &tmin, child, &mut stack);
                     continue;
                 }
             } else {
-                for block in self.leaf(cur) {
-                    tri_tests += 4;
-                    let (mut mask, t, u, v) = block.intersect(o, d, t_best);
-                    if mask != 0 {
-                        // The first lane of smallest t, as a sequential loop would pick.
-                        let mut j = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        while mask != 0 {
-                            let k = mask.trailing_zeros() as usize;
-                            mask &= mask - 1;
-                            if t[k] < t[j] {
-                                j = k;
-                            }
-                        }
-                        t_best = t[j];
-                        best = Some(Hit { t: t[j], tri: block.id[j], b1: u[j], b2: v[j] });
-                    }
-                }
+                tri_tests += self.leaf_closest(cur, o, d, &mut t_best, &mut best);
             }
             // Pop the next entry that can still hold a closer hit.
             loop {
@@ -218,6 +182,65 @@ impl<const N: usize> WideBvh<N> {
                 Some((c, _)) => cur = c,
             }
         }
+    }
+
+    /// Three or more hit children (lane `i` and the lanes of `mask`): all but the
+    /// nearest stacked farthest first, each prefetched; returns the nearest.
+    #[inline(always)]
+    pub(super) fn push_sorted<const Q: bool>(
+        &self,
+        i: usize,
+        mut mask: u32,
+        tmin: &[f32; N],
+        child: &[u32; N],
+        stack: &mut Stack<STACK>,
+    ) -> u32 {
+        let mut hits: [(u32, f32); N] = [(0, 0.0); N];
+        hits[0] = (child[i], tmin[i]);
+        let mut k = 1;
+        while mask != 0 {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let e = (child[i], tmin[i]);
+            // Insertion sort, descending by distance.
+            let mut j = k;
+            while j > 0 && hits[j - 1].1 < e.1 {
+                hits[j] = hits[j - 1];
+                j -= 1;
+            }
+            hits[j] = e;
+            k += 1;
+        }
+        for h in &hits[..k - 1] {
+            self.prefetch::<Q>(h.0);
+            stack.push(*h);
+        }
+        hits[k - 1].0
+    }
+
+    /// Tests the triangle blocks of leaf `cur` against the ray, keeping the closest
+    /// hit below `t_best`; returns the triangle tests made.
+    #[inline(always)]
+    pub(super) fn leaf_closest(&self, cur: u32, o: Vec3, d: Vec3, t_best: &mut f32, best: &mut Option<Hit>) -> u64 {
+        let blocks = self.leaf(cur);
+        for block in blocks {
+            let (mut mask, t, u, v) = block.intersect(o, d, *t_best);
+            if mask != 0 {
+                // The first lane of smallest t, as a sequential loop would pick.
+                let mut j = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                while mask != 0 {
+                    let k = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    if t[k] < t[j] {
+                        j = k;
+                    }
+                }
+                *t_best = t[j];
+                *best = Some(Hit { t: t[j], tri: block.id[j], b1: u[j], b2: v[j] });
+            }
+        }
+        4 * blocks.len() as u64
     }
 
     /// Per-ray values; with quantised nodes the slack also covers their rounding.
