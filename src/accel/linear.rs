@@ -26,6 +26,7 @@ impl Accel for Linear {
         stats.tri_tests += self.tris.len() as u64;
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
+        // In index order, so keeping only strictly nearer hits is [`super::replaces`].
         for (i, t) in self.tris.iter().enumerate() {
             if let Some((th, b1, b2)) = intersect_triangle(ray.o, ray.d, t.v0, t.e1, t.e2, t_best) {
                 t_best = th;

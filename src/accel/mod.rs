@@ -2,7 +2,8 @@
 //! `bvh4`, `bvh8`, `bvh8q`; the last three are configurations of [`wide`]).
 //!
 //! Every implementation uses [`crate::geometry::intersect_triangle`] on the same
-//! precomputed (v0, e1, e2) data, so all return the same closest hit.
+//! precomputed (v0, e1, e2) data and keeps hits by [`replaces`], so all return the
+//! same closest hit, bit for bit, whatever order they visit the triangles in.
 
 pub mod bvh;
 pub mod bvh4;
@@ -72,6 +73,28 @@ pub trait Accel: Send + Sync {
     fn simd_level(&self) -> Option<&'static str> {
         None
     }
+}
+
+/// The closest-hit rule of every accelerator: a hit at distance `t` on triangle `tri`
+/// replaces the best so far when it is nearer, or as near with a lower triangle
+/// index. The result is the least (t, index) over the triangles hit, which does not
+/// depend on the traversal order, so accelerators, SIMD levels and stream widths
+/// (which visit equal-distance children or leaves in different orders) return the
+/// same hit at exact ties too: duplicated triangles, or edges shared at the same t.
+#[inline(always)]
+pub fn replaces(t: f32, tri: u32, best: &Option<Hit>) -> bool {
+    match best {
+        None => true,
+        Some(b) => t < b.t || (t == b.t && tri < b.tri),
+    }
+}
+
+/// The exclusive distance bound for the next triangle test of a closest-hit query:
+/// the query's `t_max` before any hit, after it one ulp above the best hit's distance
+/// `t`, so that an equal-distance hit is still found and judged by [`replaces`].
+#[inline(always)]
+pub fn test_limit(t: f32, best: &Option<Hit>) -> f32 {
+    if best.is_some() { t.next_up() } else { t }
 }
 
 /// Triangle in the form the intersection test wants.

@@ -4,13 +4,14 @@
 //! Each ray takes exactly the single-ray traversal's path (same order, same culling,
 //! same ties), so the hits are those of [`crate::accel::Accel::intersect`] bit for bit.
 //! Float nodes at the portable and AVX2 levels; the quantised tree and the AVX-512
-//! level (whose sort orders equal-distance children differently) trace one ray at a
-//! time.
+//! level (whose branch-free sort visits equal-distance children in another order, so
+//! its traversal counts would differ, though not its hits: see
+//! [`crate::accel::replaces`]) trace one ray at a time.
 
 use super::WideBvh;
 use super::cpu::{AVX2, PORTABLE, Simd};
 use super::node::LEAF;
-use super::ray::{ROBUST, RayPre};
+use super::ray::{ROBUST, RayPre, traceable};
 use super::stack::Stack;
 use super::traverse::STACK;
 use crate::accel::{Accel, TraversalStats};
@@ -28,6 +29,21 @@ struct Lane {
     idx: usize,
     node_tests: u64,
     tri_tests: u64,
+}
+
+/// The next ray of the stream to put in flight, answering the untraceable ones on
+/// the way (no hit, as the single-ray traversal answers them).
+#[inline(always)]
+fn claim(rays: &[(Ray, f32)], out: &mut [Option<Hit>], next: &mut usize) -> Option<usize> {
+    while *next < rays.len() {
+        let idx = *next;
+        *next += 1;
+        if traceable(&rays[idx].0) {
+            return Some(idx);
+        }
+        out[idx] = None;
+    }
+    None
 }
 
 impl<const N: usize> WideBvh<N> {
@@ -96,10 +112,9 @@ impl<const N: usize> WideBvh<N> {
         let mut active = [false; K];
         let mut next = 0usize;
         for (lane, a) in lanes.iter_mut().zip(active.iter_mut()) {
-            if next < rays.len() {
-                self.start::<L>(lane, rays, next);
+            if let Some(idx) = claim(rays, out, &mut next) {
+                self.start::<L>(lane, rays, idx);
                 *a = true;
-                next += 1;
             }
         }
         let mut live = active.iter().filter(|a| **a).count();
@@ -112,9 +127,8 @@ impl<const N: usize> WideBvh<N> {
                 out[lane.idx] = lane.best;
                 stats.node_tests += lane.node_tests;
                 stats.tri_tests += lane.tri_tests;
-                if next < rays.len() {
-                    self.start::<L>(lane, rays, next);
-                    next += 1;
+                if let Some(idx) = claim(rays, out, &mut next) {
+                    self.start::<L>(lane, rays, idx);
                 } else {
                     *a = false;
                     live -= 1;

@@ -9,6 +9,15 @@ pub(super) const FAR_WIDEN: f32 = 1.0 + 8.0 * f32::EPSILON;
 /// Far-distance widening of the robust slab test: 1 + 2γ₃ with γₙ = nε/(1 − nε).
 pub(super) const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
+/// Whether the traversal may run on `ray`: finite origin and direction, and a
+/// direction that is not zero. On any other ray every axis of a node test can give
+/// NaN, which enters even the empty child slots; such a ray hits nothing (the
+/// triangle test's determinant is 0 or NaN), so it is answered without traversal.
+#[inline(always)]
+pub(super) fn traceable(ray: &Ray) -> bool {
+    ray.o.is_finite() && ray.d.is_finite() && ray.d != glam::Vec3::ZERO
+}
+
 /// Per-ray values every node test reuses.
 pub(super) struct RayPre {
     pub(super) o: [f32; 3],

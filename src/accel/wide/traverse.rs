@@ -6,13 +6,13 @@ use super::cpu::{AVX2, AVX512, PORTABLE, Simd};
 use super::node::{LEAF, Node};
 use super::node_test::{node_test, qnode_test};
 use super::qnode::QNode;
-use super::ray::{ROBUST, RayPre};
+use super::ray::{ROBUST, RayPre, traceable};
 use super::stack::Stack;
 use super::tri_block::TriBlock;
 #[cfg(target_arch = "x86_64")]
 use super::x86;
 use super::{MAX_DEPTH, WideBvh};
-use crate::accel::{Accel, TraversalStats};
+use crate::accel::{Accel, TraversalStats, replaces, test_limit};
 use crate::geometry::{Hit, Ray};
 use glam::Vec3;
 
@@ -50,7 +50,7 @@ impl<const N: usize> WideBvh<N> {
     #[inline(always)]
     fn intersect_impl<const L: u8, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
         stats.rays += 1;
-        if self.nodes.is_empty() && self.qnodes.is_empty() {
+        if (self.nodes.is_empty() && self.qnodes.is_empty()) || !traceable(ray) {
             return None;
         }
         let r = self.ray_pre::<L, Q>(ray);
@@ -137,7 +137,7 @@ impl<const N: usize> WideBvh<N> {
     #[inline(always)]
     fn occluded_impl<const L: u8, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
         stats.shadow_rays += 1;
-        if self.nodes.is_empty() && self.qnodes.is_empty() {
+        if (self.nodes.is_empty() && self.qnodes.is_empty()) || !traceable(ray) {
             return false;
         }
         let r = self.ray_pre::<L, Q>(ray);
@@ -219,25 +219,27 @@ impl<const N: usize> WideBvh<N> {
     }
 
     /// Tests the triangle blocks of leaf `cur` against the ray, keeping the closest
-    /// hit below `t_best`; returns the triangle tests made.
+    /// hit (by [`replaces`]) within `t_best`; returns the triangle tests made.
     #[inline(always)]
     pub(super) fn leaf_closest(&self, cur: u32, o: Vec3, d: Vec3, t_best: &mut f32, best: &mut Option<Hit>) -> u64 {
         let blocks = self.leaf(cur);
         for block in blocks {
-            let (mut mask, t, u, v) = block.intersect(o, d, *t_best);
+            let (mut mask, t, u, v) = block.intersect(o, d, test_limit(*t_best, best));
             if mask != 0 {
-                // The first lane of smallest t, as a sequential loop would pick.
+                // The lane of least (t, triangle index).
                 let mut j = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
                 while mask != 0 {
                     let k = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
-                    if t[k] < t[j] {
+                    if t[k] < t[j] || (t[k] == t[j] && block.id[k] < block.id[j]) {
                         j = k;
                     }
                 }
-                *t_best = t[j];
-                *best = Some(Hit { t: t[j], tri: block.id[j], b1: u[j], b2: v[j] });
+                if replaces(t[j], block.id[j], best) {
+                    *t_best = t[j];
+                    *best = Some(Hit { t: t[j], tri: block.id[j], b1: u[j], b2: v[j] });
+                }
             }
         }
         4 * blocks.len() as u64
@@ -378,6 +380,52 @@ mod tests {
     use super::super::cpu::detect_simd;
     use super::*;
     use glam::Vec3;
+
+    /// Rays with a zero, infinite or NaN direction, or a non-finite origin, hit
+    /// nothing and are never occluded, on every tree and level (such a ray used to
+    /// enter empty child slots and read outside the triangle blocks).
+    #[test]
+    fn degenerate_rays_hit_nothing() {
+        let tris: Vec<[Vec3; 3]> = (0..50)
+            .map(|k| {
+                let c = Vec3::new((k % 5) as f32, (k / 5 % 5) as f32, (k / 25) as f32);
+                [c, c + Vec3::X * 0.7, c + Vec3::Y * 0.7]
+            })
+            .collect();
+        let levels: &[Simd] = match detect_simd() {
+            Simd::Avx512 => &[Simd::Portable, Simd::Avx2, Simd::Avx512],
+            Simd::Avx2 => &[Simd::Portable, Simd::Avx2],
+            Simd::Portable => &[Simd::Portable],
+        };
+        let (inf, nan) = (f32::INFINITY, f32::NAN);
+        let rays = [
+            Ray::new(Vec3::splat(0.3), Vec3::ZERO),
+            Ray::new(Vec3::ZERO, Vec3::ZERO),
+            Ray::new(Vec3::splat(0.3), Vec3::new(inf, 0.0, 0.0)),
+            Ray::new(Vec3::splat(0.3), Vec3::new(nan, 0.0, 1.0)),
+            Ray::new(Vec3::new(0.3, 0.3, -inf), Vec3::Z),
+            Ray::new(Vec3::new(nan, 0.3, -1.0), Vec3::Z),
+        ];
+        for &simd in levels {
+            let trees: [Box<dyn Accel>; 3] = [
+                Box::new(WideBvh::<4> { simd, ..WideBvh::<4>::build(&tris) }),
+                Box::new(WideBvh::<8> { simd, ..WideBvh::<8>::build(&tris) }),
+                Box::new(WideBvh::<8> { simd, ..WideBvh::<8>::build_quantized(&tris) }),
+            ];
+            for bvh in &trees {
+                let mut s = TraversalStats::default();
+                for ray in &rays {
+                    assert_eq!(bvh.intersect(ray, inf, &mut s), None, "{} {simd:?} {ray:?}", bvh.name());
+                    assert!(!bvh.occluded(ray, inf, &mut s), "{} {simd:?} {ray:?}", bvh.name());
+                }
+                let stream: Vec<(Ray, f32)> =
+                    rays.iter().map(|r| (*r, inf)).chain([(Ray::new(Vec3::new(0.3, 0.3, -1.0), Vec3::Z), inf)]).collect();
+                let mut out = vec![None; stream.len()];
+                bvh.intersect_stream(&stream, &mut out, 4, &mut s);
+                assert!(out[..rays.len()].iter().all(Option::is_none) && out[rays.len()].is_some(), "{} {simd:?} stream", bvh.name());
+            }
+        }
+    }
 
     /// The portable traversal (the one non-AVX2 CPUs run) finds the same hits as the
     /// SIMD one, for float and quantised nodes and both widths.
