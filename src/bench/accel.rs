@@ -56,6 +56,32 @@ pub struct AccelArgs {
     /// traversals, other values and accelerators trace one ray at a time).
     #[arg(long, default_value_t = 0)]
     pub stream: usize,
+    /// Ray sets to trace, comma-separated (`camera`, `diffuse`, `shadow`; `''`: none,
+    /// only the build and the ray generation); all three are always generated. One
+    /// set alone, minus none, is what an instruction count per ray
+    /// (`tools/ray_instructions.py`, under `valgrind --tool=cachegrind`) needs.
+    #[arg(long, value_delimiter = ',', default_value = "camera,diffuse,shadow")]
+    pub sets: Vec<String>,
+}
+
+/// The ray sets of the benchmark, in the order they are traced.
+pub const SETS: [&str; 3] = ["camera", "diffuse", "shadow"];
+
+/// What [`run_mesh`] traces besides the single-ray queries.
+#[derive(Clone, Debug)]
+pub struct TraceOpts {
+    /// Also trace the camera and diffuse sets as streams with this many rays in
+    /// flight (rows with `api` = `stream<K>`), when above 1.
+    pub stream: usize,
+    /// The sets traced (names of [`SETS`]).
+    pub sets: Vec<String>,
+}
+
+impl TraceOpts {
+    /// Every set, with streams of `stream` rays.
+    pub fn all(stream: usize) -> Self {
+        TraceOpts { stream, sets: SETS.iter().map(|s| s.to_string()).collect() }
+    }
 }
 
 /// A triangle soup with the vertex list the camera is framed on.
@@ -515,9 +541,7 @@ pub fn build_accel(name: &str, tris: &[[Vec3; 3]], threads: usize, builds: usize
 
 /// Runs the whole benchmark for one mesh and camera placement: builds every
 /// accelerator, generates the rays with the first, times each set with each.
-///
-/// With `stream` > 1 the camera and diffuse sets are also traced as streams with
-/// `stream` rays in flight (rows with `api` = `stream<K>`).
+/// `opts` picks the sets traced and the stream width.
 pub fn run_mesh(
     mesh: &BenchMesh,
     accels: &[String],
@@ -525,11 +549,15 @@ pub fn run_mesh(
     inside: bool,
     threads: usize,
     builds: usize,
-    stream: usize,
+    opts: &TraceOpts,
 ) -> Result<Vec<BenchRow>> {
     if accels.is_empty() {
         bail!("--accel: name at least one accelerator");
     }
+    if let Some(bad) = opts.sets.iter().find(|s| !s.is_empty() && !SETS.contains(&s.as_str())) {
+        bail!("--sets: unknown ray set `{bad}` (known: {})", SETS.join(", "));
+    }
+    let stream = opts.stream;
     for a in accels {
         registry::check_accel(a)?;
     }
@@ -557,6 +585,7 @@ pub fn run_mesh(
         cases.insert(2, ("diffuse", &sets.diffuse, Query::Stream(stream)));
         cases.insert(1, ("camera", &sets.camera, Query::Stream(stream)));
     }
+    cases.retain(|c| opts.sets.iter().any(|s| s == c.0));
     for (set, rays, query) in cases {
         if rays.is_empty() {
             continue;
@@ -641,7 +670,7 @@ pub fn run(a: &AccelArgs) -> Result<()> {
     if a.stream > 64 {
         bail!("--stream: at most 64 rays in flight, got {}", a.stream);
     }
-    let rows = run_mesh(&mesh, &a.accel, a.rays, a.inside, a.threads, a.builds, a.stream)?;
+    let rows = run_mesh(&mesh, &a.accel, a.rays, a.inside, a.threads, a.builds, &TraceOpts { stream: a.stream, sets: a.sets.clone() })?;
     if a.json {
         for r in &rows {
             outln!("{}", serde_json::to_string(r)?);
@@ -712,5 +741,20 @@ mod tests {
         }
         let again = generate_rays(&mesh, acc.as_ref(), 1000, true).unwrap();
         assert_eq!(again.diffuse[999].d, s.diffuse[999].d);
+    }
+
+    /// `--sets` traces only the sets named (in the usual order), and rejects others.
+    #[test]
+    fn only_the_chosen_ray_sets_are_traced() {
+        let mesh = BenchMesh::from_builtin("furnace").unwrap();
+        let sets = |names: &[&str], stream| TraceOpts { stream, sets: names.iter().map(|s| s.to_string()).collect() };
+        let run = |o: &TraceOpts| run_mesh(&mesh, &["bvh8".into()], 500, true, 1, 1, o);
+        let rows = run(&sets(&["shadow", "camera"], 4)).unwrap();
+        let got: Vec<(&str, &str)> = rows.iter().map(|r| (r.rays.as_str(), r.api.as_str())).collect();
+        assert_eq!(got, [("camera", "intersect1"), ("camera", "stream4"), ("shadow", "occluded1")]);
+        assert_eq!(run(&TraceOpts::all(0)).unwrap().len(), 3);
+        assert!(run(&sets(&[""], 8)).unwrap().is_empty());
+        let err = run(&sets(&["diffuse", "glossy"], 0)).unwrap_err().to_string();
+        assert!(err.contains("`glossy`") && err.contains("camera, diffuse, shadow"), "{err}");
     }
 }

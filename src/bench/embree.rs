@@ -9,7 +9,7 @@
 //! triangles) exported as OBJ,
 //! each with the outside and the inside camera, at each thread count.
 
-use super::accel::{BenchMesh, BenchRow, run_mesh};
+use super::accel::{BenchMesh, BenchRow, TraceOpts, run_mesh};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -212,11 +212,13 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
             for &t in &a.threads {
                 // Back to back, so both engines see the same machine load.
                 let mut emb = run_harness(&harness, path, inside, t, a.rays)?;
-                let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, a.stream)?;
+                let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, &TraceOpts::all(a.stream))?;
                 let mut paired = vec![pair_rows(&emb, &ours)];
                 for _ in 1..a.repeats {
-                    let (e, o) =
-                        (run_harness(&harness, path, inside, t, a.rays)?, run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, a.stream)?);
+                    let (e, o) = (
+                        run_harness(&harness, path, inside, t, a.rays)?,
+                        run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, &TraceOpts::all(a.stream))?,
+                    );
                     paired.push(pair_rows(&e, &o));
                     keep_best_embree(&mut emb, e);
                     keep_best_ours(&mut ours, o);
