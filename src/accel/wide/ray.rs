@@ -20,6 +20,30 @@ pub(super) fn traceable(ray: &Ray) -> bool {
     (o.is_finite_mask() & d.is_finite_mask()).all() && d.cmpne(Vec3A::ZERO).any()
 }
 
+/// The plane offsets of [`RayPre::planes`] for each of the 8 direction octants
+/// (bit a set: the direction is negative on axis a), for N-wide nodes.
+struct Planes<const N: usize>;
+
+impl<const N: usize> Planes<N> {
+    /// Node<N> holds lo[3][N] then hi[3][N] (repr(C)): per axis, the near plane is the
+    /// maximum where the direction is negative, the far plane the other one.
+    const BY_OCTANT: [[usize; 6]; 8] = {
+        let mut t = [[0usize; 6]; 8];
+        let mut oct = 0;
+        while oct < 8 {
+            let mut a = 0;
+            while a < 3 {
+                let hi = oct >> a & 1;
+                t[oct][a] = (a + 3 * hi) * N * 4;
+                t[oct][3 + a] = (a + 3 * (1 - hi)) * N * 4;
+                a += 1;
+            }
+            oct += 1;
+        }
+        t
+    };
+}
+
 /// Per-ray values every node test reuses.
 pub(super) struct RayPre {
     pub(super) o: Vec3A,
@@ -59,18 +83,14 @@ impl RayPre {
         let oi = o * inv;
         let aoi = oi.abs();
         let big = Vec3A::select(aoi.cmplt(Vec3A::INFINITY), aoi, Vec3A::ZERO).max_element();
-        let neg = inv.cmplt(Vec3A::ZERO).bitmask();
-        // Node<N> holds lo[3][N] then hi[3][N] (repr(C)): per axis, the near plane is
-        // the maximum where the direction is negative, the far plane the other one.
-        let plane = |a: usize, hi: u32| (a + 3 * hi as usize) * N * 4;
-        let nb = |a: usize| neg >> a & 1;
-        let planes = [plane(0, nb(0)), plane(1, nb(1)), plane(2, nb(2)), plane(0, 1 - nb(0)), plane(1, 1 - nb(1)), plane(2, 1 - nb(2))];
+        let neg = inv.cmplt(Vec3A::ZERO).bitmask() as usize & 7;
+        let nb = |a: usize| neg >> a & 1 == 1;
         let z = Vec3A::ZERO;
         RayPre {
             o,
             inv,
-            neg: [nb(0) == 1, nb(1) == 1, nb(2) == 1],
-            planes,
+            neg: [nb(0), nb(1), nb(2)],
+            planes: Planes::<N>::BY_OCTANT[neg],
             qplanes: [0; 6],
             oi,
             slack: 4.0 * f32::EPSILON * big,
