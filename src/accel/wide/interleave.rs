@@ -182,9 +182,8 @@ impl<const N: usize> WideBvh<N> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::WideBvh;
-    use super::super::cpu::{Simd, detect_simd};
-    use crate::accel::{Accel, TraversalStats};
+    use super::super::trees_at_every_level;
+    use crate::accel::TraversalStats;
     use crate::geometry::Ray;
     use glam::Vec3;
 
@@ -213,28 +212,16 @@ mod tests {
                 (Ray::new(o, d), if i % 3 == 0 { 2.0 } else { f32::INFINITY })
             })
             .collect();
-        let levels: &[Simd] = match detect_simd() {
-            Simd::Avx512 => &[Simd::Portable, Simd::Avx2, Simd::Avx512],
-            Simd::Avx2 => &[Simd::Portable, Simd::Avx2],
-            Simd::Portable => &[Simd::Portable],
-        };
-        for &simd in levels {
-            let trees: [Box<dyn Accel>; 3] = [
-                Box::new(WideBvh::<4> { simd, ..WideBvh::<4>::build(&tris) }),
-                Box::new(WideBvh::<8> { simd, ..WideBvh::<8>::build(&tris) }),
-                Box::new(WideBvh::<8> { simd, ..WideBvh::<8>::build_quantized(&tris) }),
-            ];
-            for bvh in &trees {
-                let mut st = TraversalStats::default();
-                let single: Vec<_> = rays.iter().map(|(r, t)| bvh.intersect(r, *t, &mut st)).collect();
-                assert!(single.iter().filter(|h| h.is_some()).count() > 1000);
-                for k in [1, 2, 3, 4, 8] {
-                    let mut out = vec![None; rays.len()];
-                    let mut s2 = TraversalStats::default();
-                    bvh.intersect_stream(&rays, &mut out, k, &mut s2);
-                    assert_eq!(out, single, "{} {simd:?} k = {k}", bvh.name());
-                    assert_eq!(s2, st, "{} {simd:?} k = {k}: same node and triangle tests", bvh.name());
-                }
+        for (simd, bvh) in trees_at_every_level(&tris) {
+            let mut st = TraversalStats::default();
+            let single: Vec<_> = rays.iter().map(|(r, t)| bvh.intersect(r, *t, &mut st)).collect();
+            assert!(single.iter().filter(|h| h.is_some()).count() > 1000);
+            for k in [1, 2, 3, 4, 8] {
+                let mut out = vec![None; rays.len()];
+                let mut s2 = TraversalStats::default();
+                bvh.intersect_stream(&rays, &mut out, k, &mut s2);
+                assert_eq!(out, single, "{} {simd:?} k = {k}", bvh.name());
+                assert_eq!(s2, st, "{} {simd:?} k = {k}: same node and triangle tests", bvh.name());
             }
         }
     }

@@ -254,6 +254,24 @@ fn rnd(seed: &mut u64) -> f32 {
     *seed = crate::math::hash_words(&[*seed]);
     (*seed >> 40) as f32 / (1u64 << 24) as f32
 }
+/// For the tests: `bvh4`, `bvh8` and `bvh8q` over `tris` at every traversal level this
+/// CPU runs, the portable one included, as (level, tree).
+#[cfg(test)]
+fn trees_at_every_level(tris: &[[Vec3; 3]]) -> Vec<(Simd, Box<dyn crate::accel::Accel>)> {
+    let levels: &[Simd] = match cpu::detect_simd() {
+        Simd::Avx512 => &[Simd::Portable, Simd::Avx2, Simd::Avx512],
+        Simd::Avx2 => &[Simd::Portable, Simd::Avx2],
+        Simd::Portable => &[Simd::Portable],
+    };
+    let mut out: Vec<(Simd, Box<dyn crate::accel::Accel>)> = Vec::new();
+    for &simd in levels {
+        out.push((simd, Box::new(WideBvh::<4> { simd, ..WideBvh::<4>::build(tris) })));
+        out.push((simd, Box::new(WideBvh::<8> { simd, ..WideBvh::<8>::build(tris) })));
+        out.push((simd, Box::new(WideBvh::<8> { simd, ..WideBvh::<8>::build_quantized(tris) })));
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

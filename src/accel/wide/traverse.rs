@@ -378,6 +378,7 @@ impl<const N: usize> Accel for WideBvh<N> {
 #[cfg(test)]
 mod tests {
     use super::super::cpu::detect_simd;
+    use super::super::trees_at_every_level;
     use super::*;
     use glam::Vec3;
 
@@ -392,11 +393,6 @@ mod tests {
                 [c, c + Vec3::X * 0.7, c + Vec3::Y * 0.7]
             })
             .collect();
-        let levels: &[Simd] = match detect_simd() {
-            Simd::Avx512 => &[Simd::Portable, Simd::Avx2, Simd::Avx512],
-            Simd::Avx2 => &[Simd::Portable, Simd::Avx2],
-            Simd::Portable => &[Simd::Portable],
-        };
         let (inf, nan) = (f32::INFINITY, f32::NAN);
         let rays = [
             Ray::new(Vec3::splat(0.3), Vec3::ZERO),
@@ -406,24 +402,17 @@ mod tests {
             Ray::new(Vec3::new(0.3, 0.3, -inf), Vec3::Z),
             Ray::new(Vec3::new(nan, 0.3, -1.0), Vec3::Z),
         ];
-        for &simd in levels {
-            let trees: [Box<dyn Accel>; 3] = [
-                Box::new(WideBvh::<4> { simd, ..WideBvh::<4>::build(&tris) }),
-                Box::new(WideBvh::<8> { simd, ..WideBvh::<8>::build(&tris) }),
-                Box::new(WideBvh::<8> { simd, ..WideBvh::<8>::build_quantized(&tris) }),
-            ];
-            for bvh in &trees {
-                let mut s = TraversalStats::default();
-                for ray in &rays {
-                    assert_eq!(bvh.intersect(ray, inf, &mut s), None, "{} {simd:?} {ray:?}", bvh.name());
-                    assert!(!bvh.occluded(ray, inf, &mut s), "{} {simd:?} {ray:?}", bvh.name());
-                }
-                let stream: Vec<(Ray, f32)> =
-                    rays.iter().map(|r| (*r, inf)).chain([(Ray::new(Vec3::new(0.3, 0.3, -1.0), Vec3::Z), inf)]).collect();
-                let mut out = vec![None; stream.len()];
-                bvh.intersect_stream(&stream, &mut out, 4, &mut s);
-                assert!(out[..rays.len()].iter().all(Option::is_none) && out[rays.len()].is_some(), "{} {simd:?} stream", bvh.name());
+        for (simd, bvh) in trees_at_every_level(&tris) {
+            let mut s = TraversalStats::default();
+            for ray in &rays {
+                assert_eq!(bvh.intersect(ray, inf, &mut s), None, "{} {simd:?} {ray:?}", bvh.name());
+                assert!(!bvh.occluded(ray, inf, &mut s), "{} {simd:?} {ray:?}", bvh.name());
             }
+            let stream: Vec<(Ray, f32)> =
+                rays.iter().map(|r| (*r, inf)).chain([(Ray::new(Vec3::new(0.3, 0.3, -1.0), Vec3::Z), inf)]).collect();
+            let mut out = vec![None; stream.len()];
+            bvh.intersect_stream(&stream, &mut out, 4, &mut s);
+            assert!(out[..rays.len()].iter().all(Option::is_none) && out[rays.len()].is_some(), "{} {simd:?} stream", bvh.name());
         }
     }
 
