@@ -47,7 +47,10 @@ def totals(path):
 
 def cachegrind(cmd, out, env=None):
     full = ["valgrind", "--tool=cachegrind", "--cache-sim=yes", "--branch-sim=yes", f"--cachegrind-out-file={out}"] + cmd
-    r = subprocess.run(full, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        r = subprocess.run(full, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    except FileNotFoundError:
+        sys.exit("ray_instructions: valgrind is not installed (apt-get install valgrind)")
     if r.returncode != 0:
         sys.exit(f"ray_instructions: {' '.join(cmd)} failed:\n{r.stderr[-2000:]}")
     return totals(out)
