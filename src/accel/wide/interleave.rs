@@ -3,10 +3,9 @@
 //! independent rays overlap where one ray alone would wait on each node in turn.
 //! Each ray takes exactly the single-ray traversal's path (same order, same culling,
 //! same ties), so the hits are those of [`crate::accel::Accel::intersect`] bit for bit.
-//! Float nodes at the portable and AVX2 levels; the quantised tree and the AVX-512
-//! level (whose branch-free sort visits equal-distance children in another order, so
-//! its traversal counts would differ, though not its hits: see
-//! [`crate::accel::replaces`]) trace one ray at a time.
+//! Float nodes only (the quantised tree traces one ray at a time). An AVX-512 CPU runs
+//! the AVX2 stream: its single-ray traversal uses the same node test and the same
+//! ordering of hit children, so the path is the same.
 
 use super::WideBvh;
 use super::cpu::{AVX2, PORTABLE, Simd};
@@ -51,7 +50,7 @@ impl<const N: usize> WideBvh<N> {
     /// (1, 2, 4 or 8; others trace one at a time).
     pub(super) fn interleaved(&self, rays: &[(Ray, f32)], out: &mut [Option<Hit>], k: usize, stats: &mut TraversalStats) {
         assert_eq!(rays.len(), out.len(), "one output per ray");
-        let interleaved = !self.quant && !self.nodes.is_empty() && self.simd != Simd::Avx512;
+        let interleaved = !self.quant && !self.nodes.is_empty();
         match (interleaved, k) {
             (true, 2) => self.stream_level::<2>(rays, out, stats),
             (true, 4) => self.stream_level::<4>(rays, out, stats),
@@ -66,8 +65,9 @@ impl<const N: usize> WideBvh<N> {
 
     fn stream_level<const K: usize>(&self, rays: &[(Ray, f32)], out: &mut [Option<Hit>], stats: &mut TraversalStats) {
         #[cfg(target_arch = "x86_64")]
-        if self.simd == Simd::Avx2 {
-            // SAFETY: `simd` names only a level the CPU reported (`detect_simd`).
+        if self.simd != Simd::Portable {
+            // SAFETY: `simd` names only a level the CPU reported (`detect_simd`), and
+            // AVX-512 CPUs have AVX2 and FMA.
             return unsafe { self.stream_avx2::<K>(rays, out, stats) };
         }
         self.stream_impl::<K, PORTABLE>(rays, out, stats)
@@ -161,7 +161,7 @@ impl<const N: usize> WideBvh<N> {
                     s.cur = child[near];
                     return true;
                 }
-                s.cur = self.push_sorted::<false>(i, mask, tmin, child, &mut s.stack);
+                s.cur = self.order_many::<L, false>(i, mask, tmin, child, &mut s.stack);
                 return true;
             }
         } else {

@@ -92,25 +92,7 @@ impl<const N: usize> WideBvh<N> {
                         continue;
                     }
                     // Three or more: visit the nearest now, stack the rest farthest first.
-                    #[cfg(target_arch = "x86_64")]
-                    if N == 8 && L == AVX512 && !Q {
-                        let full = mask | 1 << i;
-                        // SAFETY: L is AVX512 only inside the AVX-512 traversal (CPU checked
-                        // at build); `tmin` and `child` hold 8 values, the node test left
-                        // non-negative distances in `tmin`.
-                        cur = unsafe { x86::sort_hits8(tmin.as_ptr(), full, child.as_ptr(), stack.top8()) };
-                        stack.grow(full.count_ones() as usize - 1);
-                        // Every hit child but the lowest lane's: prefetching all of them
-                        // (the nearest is loaded next anyway) measured 0.94–0.97× on the
-                        // Sponza-inside diffuse rays.
-                        let mut m = mask;
-                        while m != 0 {
-                            self.prefetch::<Q>(child[m.trailing_zeros() as usize]);
-                            m &= m - 1;
-                        }
-                        continue;
-                    }
-                    cur = self.push_sorted::<Q>(i, mask, &tmin, child, &mut stack);
+                    cur = self.order_many::<L, Q>(i, mask, &tmin, child, &mut stack);
                     continue;
                 }
             } else {
@@ -185,7 +167,41 @@ impl<const N: usize> WideBvh<N> {
     }
 
     /// Three or more hit children (lane `i` and the lanes of `mask`): all but the
-    /// nearest stacked farthest first, each prefetched; returns the nearest.
+    /// nearest stacked farthest first, each prefetched; returns the nearest. With
+    /// 8-wide float nodes on x86 a branch-free sorting network orders them (on Sponza
+    /// inside a closest-hit query meets one such node on average, and the insertion
+    /// sort took ~100 instructions and data-dependent branches: docs/benchmarks.md).
+    #[inline(always)]
+    pub(super) fn order_many<const L: u8, const Q: bool>(
+        &self,
+        i: usize,
+        mask: u32,
+        tmin: &[f32; N],
+        child: &[u32; N],
+        stack: &mut Stack<STACK>,
+    ) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        if N == 8 && L >= AVX2 && !Q {
+            let full = mask | 1 << i;
+            // SAFETY: L is AVX2 or AVX512 only inside those traversals (CPU checked
+            // at build); `tmin` and `child` hold 8 values, the node test left
+            // non-negative distances in `tmin`.
+            let cur = unsafe { x86::sort_hits8(tmin.as_ptr(), full, child.as_ptr(), stack.top8()) };
+            stack.grow(full.count_ones() as usize - 1);
+            // Every hit child but the lowest lane's: prefetching all of them
+            // (the nearest is loaded next anyway) measured 0.94–0.97× on the
+            // Sponza-inside diffuse rays.
+            let mut m = mask;
+            while m != 0 {
+                self.prefetch::<Q>(child[m.trailing_zeros() as usize]);
+                m &= m - 1;
+            }
+            return cur;
+        }
+        self.push_sorted::<Q>(i, mask, tmin, child, stack)
+    }
+
+    /// The insertion-sort form of [`Self::order_many`].
     #[inline(always)]
     pub(super) fn push_sorted<const Q: bool>(
         &self,

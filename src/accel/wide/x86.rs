@@ -43,28 +43,30 @@ pub(super) unsafe fn node_test8(planes: &[*const f32; 6], r: &RayPre, t_max: f32
 /// hit children go to `out` farthest first (a bitonic network over the same keys,
 /// non-hit lanes last), so the caller counts the first popcount − 1 of them as
 /// pushed. Stored distances have their 3 low bits cleared (at most 7 ulps
-/// smaller, which only ever keeps an entry on pop). Safety: AVX2 and AVX-512
-/// F/VL; `tmin` (non-negative distances, as `node_test8` leaves them) and `child`
+/// smaller, which only ever keeps an entry on pop). AVX2 only (the blends of the
+/// network have constant masks), so both x86 levels order the same way. Safety:
+/// AVX2; `tmin` (non-negative distances, as `node_test8` leaves them) and `child`
 /// must point to 8 values.
 #[inline(always)]
 pub(super) unsafe fn sort_hits8(tmin: *const f32, mask: u32, child: *const u32, out: &mut [std::mem::MaybeUninit<Entry>; 8]) -> u32 {
     // SAFETY: the caller's guarantees; `out` holds 8 entries of 8 bytes.
     unsafe {
-        let k = mask as __mmask8;
+        let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        let hit = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(mask as i32), bits), bits);
         let t = _mm256_loadu_si256(tmin as *const __m256i);
         let key = _mm256_or_si256(_mm256_and_si256(t, _mm256_set1_epi32(!7)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-        let m = _mm256_mask_blend_epi32(k, _mm256_set1_epi32(i32::MAX), key);
+        let m = _mm256_blendv_epi8(_mm256_set1_epi32(i32::MAX), key, hit);
         let m = _mm256_min_epi32(m, _mm256_permute4x64_epi64::<0x4E>(m));
         let m = _mm256_min_epi32(m, _mm256_shuffle_epi32::<0x4E>(m));
         let m = _mm256_min_epi32(m, _mm256_shuffle_epi32::<0xB1>(m));
         let nearest = *child.add((_mm256_cvtsi256_si32(m) & 7) as usize);
         // Bitonic sort, descending: per layer, each lane meets its partner and
         // keeps the larger key where the mask bit is set.
-        let mut v = _mm256_mask_blend_epi32(k, _mm256_set1_epi32(-1), key);
+        let mut v = _mm256_blendv_epi8(_mm256_set1_epi32(-1), key, hit);
         macro_rules! layer {
-            ($partner:expr, $max:expr) => {
+            ($partner:expr, $max:literal) => {
                 let p = $partner;
-                v = _mm256_mask_blend_epi32($max, _mm256_min_epi32(v, p), _mm256_max_epi32(v, p));
+                v = _mm256_blend_epi32::<$max>(_mm256_min_epi32(v, p), _mm256_max_epi32(v, p));
             };
         }
         layer!(_mm256_shuffle_epi32::<0xB1>(v), 0x99);
@@ -265,8 +267,8 @@ mod tests {
     /// returned, the others come farthest first, none is lost or invented.
     #[test]
     fn sorted_push_of_many_hits() {
-        if detect_simd() != Simd::Avx512 {
-            eprintln!("no AVX-512 on this CPU: the sorted push is not used, nothing to check");
+        if detect_simd() == Simd::Portable {
+            eprintln!("no AVX2 on this CPU: the sorted push is not used, nothing to check");
             return;
         }
         let mut seed = 11u64;
@@ -283,7 +285,7 @@ mod tests {
                 );
             let child: [u32; 8] = std::array::from_fn(|i| 1000 + i as u32 * 7);
             let mut out = [const { MaybeUninit::uninit() }; 8];
-            // SAFETY: AVX-512 checked above; 8 non-negative distances and children.
+            // SAFETY: AVX2 checked above; 8 non-negative distances and children.
             let near = unsafe { x86::sort_hits8(tmin.as_ptr(), mask, child.as_ptr(), &mut out) };
             let k = mask.count_ones() as usize;
             // SAFETY: the function wrote all 8 entries.
