@@ -12,9 +12,10 @@
 pub(super) enum Simd {
     /// Lane loops only (no x86 extensions assumed).
     Portable,
-    /// AVX2 and FMA.
+    /// AVX2 and FMA (with POPCNT, BMI1 and BMI2, which every AVX2 CPU has: a
+    /// population count is one instruction instead of thirteen).
     Avx2,
-    /// AVX2, FMA and AVX-512 F/VL/BW/DQ.
+    /// The AVX2 level's and AVX-512 F/VL/BW/DQ.
     Avx512,
 }
 
@@ -46,7 +47,7 @@ fn cpu_simd() -> Simd {
     #[cfg(target_arch = "x86_64")]
     {
         use std::is_x86_feature_detected as has;
-        if has!("avx2") && has!("fma") {
+        if has!("avx2") && has!("fma") && has!("popcnt") && has!("bmi1") && has!("bmi2") {
             if has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq") {
                 return Simd::Avx512;
             }

@@ -74,7 +74,7 @@ impl<const N: usize> WideBvh<N> {
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2,fma,popcnt,bmi1,bmi2")]
     fn stream_avx2<const K: usize>(&self, rays: &[(Ray, f32)], out: &mut [Option<Hit>], stats: &mut TraversalStats) {
         self.stream_impl::<K, AVX2>(rays, out, stats)
     }

@@ -339,8 +339,8 @@ impl<const N: usize> WideBvh<N> {
         }
     }
 
-    simd_entries!(intersect_avx2, occluded_avx2, AVX2, "avx2,fma");
-    simd_entries!(intersect_avx512, occluded_avx512, AVX512, "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq");
+    simd_entries!(intersect_avx2, occluded_avx2, AVX2, "avx2,fma,popcnt,bmi1,bmi2");
+    simd_entries!(intersect_avx512, occluded_avx512, AVX512, "avx2,fma,popcnt,bmi1,bmi2,avx512f,avx512vl,avx512bw,avx512dq");
 }
 
 impl<const N: usize> Accel for WideBvh<N> {
