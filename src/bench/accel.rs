@@ -77,10 +77,15 @@ pub struct TraceOpts {
     pub sets: Vec<String>,
 }
 
+/// The names of all ray sets, as `--sets` takes them.
+pub fn all_sets() -> Vec<String> {
+    SETS.iter().map(|s| s.to_string()).collect()
+}
+
 impl TraceOpts {
     /// Every set, with streams of `stream` rays.
     pub fn all(stream: usize) -> Self {
-        TraceOpts { stream, sets: SETS.iter().map(|s| s.to_string()).collect() }
+        TraceOpts { stream, sets: all_sets() }
     }
 }
 

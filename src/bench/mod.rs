@@ -65,7 +65,7 @@ fn run_all(json: bool) -> Result<()> {
             name: None,
             json,
             stream: 8,
-            sets: accel::SETS.iter().map(|s| s.to_string()).collect(),
+            sets: accel::all_sets(),
         })?;
     }
     // The kd-tree-vs-kiddo comparison needs the optional `kiddo` feature; without it

@@ -20,12 +20,14 @@ pub(super) fn traceable(ray: &Ray) -> bool {
     (o.is_finite_mask() & d.is_finite_mask()).all() && d.cmpne(Vec3A::ZERO).any()
 }
 
-/// The plane offsets of [`RayPre::planes`] for each of the 8 direction octants
-/// (bit a set: the direction is negative on axis a), for N-wide nodes.
-struct Planes<const N: usize>;
+/// The byte offsets of a node's near (x, y, z) then far (x, y, z) plane arrays for
+/// each of the 8 direction octants (bit a set: the direction is negative on axis a),
+/// for N-wide nodes of E-byte coordinates: [`RayPre::planes`] (float nodes, E = 4)
+/// and [`RayPre::qplanes`] (quantised nodes, E = 1).
+struct Planes<const N: usize, const E: usize>;
 
-impl<const N: usize> Planes<N> {
-    /// Node<N> holds lo[3][N] then hi[3][N] (repr(C)): per axis, the near plane is the
+impl<const N: usize, const E: usize> Planes<N, E> {
+    /// Nodes hold lo[3][N] then hi[3][N] (repr(C)): per axis, the near plane is the
     /// maximum where the direction is negative, the far plane the other one.
     const BY_OCTANT: [[usize; 6]; 8] = {
         let mut t = [[0usize; 6]; 8];
@@ -34,8 +36,8 @@ impl<const N: usize> Planes<N> {
             let mut a = 0;
             while a < 3 {
                 let hi = oct >> a & 1;
-                t[oct][a] = (a + 3 * hi) * N * 4;
-                t[oct][3 + a] = (a + 3 * (1 - hi)) * N * 4;
+                t[oct][a] = (a + 3 * hi) * N * E;
+                t[oct][3 + a] = (a + 3 * (1 - hi)) * N * E;
                 a += 1;
             }
             oct += 1;
@@ -90,7 +92,7 @@ impl RayPre {
             o,
             inv,
             neg: [nb(0), nb(1), nb(2)],
-            planes: Planes::<N>::BY_OCTANT[neg],
+            planes: Planes::<N, 4>::BY_OCTANT[neg],
             qplanes: [0; 6],
             oi,
             slack: 4.0 * f32::EPSILON * big,
@@ -99,6 +101,13 @@ impl RayPre {
             far_c: z,
             far_b: z,
         }
+    }
+
+    /// Sets [`RayPre::qplanes`], the plane offsets in quantised N-wide nodes.
+    #[inline(always)]
+    pub(super) fn quantised_planes<const N: usize>(&mut self) {
+        let octant = self.neg[0] as usize | (self.neg[1] as usize) << 1 | (self.neg[2] as usize) << 2;
+        self.qplanes = Planes::<N, 1>::BY_OCTANT[octant];
     }
 
     /// Plane-distance coefficients for the node test that compares distances as

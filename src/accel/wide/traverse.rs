@@ -269,8 +269,7 @@ impl<const N: usize> WideBvh<N> {
     pub(super) fn ray_pre<const L: u8, const Q: bool>(&self, ray: &Ray) -> RayPre {
         let mut r = RayPre::new::<N>(ray);
         if Q {
-            let qpick = |a: usize, near: bool| if r.neg[a] == near { (3 + a) * N } else { a * N };
-            r.qplanes = [qpick(0, true), qpick(1, true), qpick(2, true), qpick(0, false), qpick(1, false), qpick(2, false)];
+            r.quantised_planes::<N>();
             r.slack += QNode::<N>::slack(r.o.to_array(), r.inv.to_array(), self.cmax);
         } else if L >= AVX2 && N == 8 {
             r.fast_planes(self.cmax);
