@@ -4,9 +4,10 @@
 use crate::geometry::Ray;
 use glam::Vec3A;
 
-/// Relative widening of far distances in the integer-compare node test
-/// ([`RayPre::fast_planes`]).
-pub(super) const FAR_WIDEN: f32 = 1.0 + 8.0 * f32::EPSILON;
+/// Units in the last place added to the exit distance of the integer-compare node
+/// test (`x86::node_test8`), as one integer addition: a relative widening of at
+/// least 8·ε/2 (see [`RayPre::fast_planes`]).
+pub(super) const FAR_ULPS: i32 = 8;
 /// Far-distance widening of the robust slab test: 1 + 2γ₃ with γₙ = nε/(1 − nε).
 pub(super) const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
@@ -65,12 +66,11 @@ pub(super) struct RayPre {
     /// to an origin far from the world origin; 0 where o·inv is not finite (those
     /// lanes become NaN and are ignored, which only ever keeps a box).
     pub(super) slack: f32,
-    /// Near-plane distance t = plane·`near_c` − `near_b` and far-plane distance
-    /// plane·`far_c` − `far_b` per axis, for the integer-compare node test (see
+    /// Near-plane distance t = plane·`c` − `near_b` and far-plane distance
+    /// plane·`c` − `far_b` per axis, for the integer-compare node test (see
     /// [`RayPre::fast_planes`]); set only for float nodes.
-    pub(super) near_c: Vec3A,
+    pub(super) c: Vec3A,
     pub(super) near_b: Vec3A,
-    pub(super) far_c: Vec3A,
     pub(super) far_b: Vec3A,
 }
 
@@ -96,9 +96,8 @@ impl RayPre {
             qplanes: [0; 6],
             oi,
             slack: 4.0 * f32::EPSILON * big,
-            near_c: z,
+            c: z,
             near_b: z,
-            far_c: z,
             far_b: z,
         }
     }
@@ -117,16 +116,18 @@ impl RayPre {
     /// An axis whose inverse direction is infinite, or so large that a product could
     /// overflow (|inv|·max(|o|, scene) ≥ 2^100), gets coefficient 0 and offsets ±∞:
     /// near distance −∞ and far +∞, so it never culls (as the NaN lanes of the float
-    /// test). Otherwise the near offset is raised and the far one lowered by
-    /// s = 16 ε·|o·inv| (plus the smallest normal, for underflow), and the far
-    /// coefficient and offset are scaled by 1 + 8 ε. With u = ε/2 and T the exact
-    /// distance: near ≤ T(1 + 2u + u²), because s exceeds the rounding of o·inv and
-    /// of the offset; far ≥ T(1 + 13u) for T ≥ 0 (and > 0 at T = 0), because s
-    /// exceeds the rounding of o·inv, of both scaled constants and of plane·coef
-    /// (≤ 4u|o·inv| + u|T|). So a box the ray crosses on [0, t_max] is never culled,
-    /// and the entry distance never exceeds T(1 + 2u + u²), within the traversal's
-    /// culling margin [`ROBUST`]. Finite values keep NaN out of every non-empty
-    /// lane, which the integer comparison needs.
+    /// test). Otherwise the coefficient is inv (near and far planes share it, so
+    /// that only three per-ray vectors need registers beside the inlined triangle
+    /// test), the near offset is o·inv raised and the far one lowered by
+    /// s = 16 ε·|o·inv| (plus the smallest normal, for underflow). With u = ε/2 and T
+    /// the exact distance: near ≤ T(1 + u)², because s exceeds the rounding of o·inv
+    /// and of the offset; far ≥ T(1 − u)² for T ≥ 0 (and ≥ 2^-127 at T = 0), for the
+    /// same reason. The node test widens the folded exit by [`FAR_ULPS`] units in the
+    /// last place, at least a factor 1 + 8u on a non-negative float, and
+    /// (1 − u)²(1 + 8u) > (1 + u)²: so a box the ray crosses on [0, t_max] is never
+    /// culled, and the entry distance never exceeds T(1 + u)², within the
+    /// traversal's culling margin [`ROBUST`]. Finite values keep NaN out of every
+    /// non-empty lane, which the integer comparison needs.
     // `#[inline]`: called once per ray by the traversal in another file, where only an
     // inline function can be inlined (it was inlined when both shared one file).
     #[inline]
@@ -141,10 +142,9 @@ impl RayPre {
         let culls = (inv.abs() * m).cmplt(Vec3A::splat(TWO_POW_100));
         let s = Vec3A::splat(16.0 * f32::EPSILON) * oi.abs() + Vec3A::splat(f32::MIN_POSITIVE);
         let pick = |v: Vec3A, parallel: f32| Vec3A::select(culls, v, Vec3A::splat(parallel));
-        self.near_c = pick(inv, 0.0);
+        self.c = pick(inv, 0.0);
         self.near_b = pick(oi + s, f32::INFINITY);
-        self.far_c = pick(inv * FAR_WIDEN, 0.0);
-        self.far_b = pick(oi * FAR_WIDEN - s, f32::NEG_INFINITY);
+        self.far_b = pick(oi - s, f32::NEG_INFINITY);
     }
 }
 
@@ -154,7 +154,7 @@ mod tests {
     use glam::Vec3;
 
     /// The per-ray values, one axis at a time (the form the vector code replaced).
-    fn scalar(ray: &Ray, cmax: [f32; 3]) -> ([f32; 3], [usize; 6], f32, [[f32; 3]; 4]) {
+    fn scalar(ray: &Ray, cmax: [f32; 3]) -> ([f32; 3], [usize; 6], f32, [[f32; 3]; 3]) {
         let inv = ray.d.recip().to_array();
         let o = ray.o.to_array();
         let oi = [o[0] * inv[0], o[1] * inv[1], o[2] * inv[2]];
@@ -162,15 +162,15 @@ mod tests {
         let neg = [inv[0] < 0.0, inv[1] < 0.0, inv[2] < 0.0];
         let pick = |a: usize, near: bool| if neg[a] == near { (3 + a) * 32 } else { a * 32 };
         let planes = [pick(0, true), pick(1, true), pick(2, true), pick(0, false), pick(1, false), pick(2, false)];
-        let mut c = [[0.0f32; 3]; 4];
+        let mut c = [[0.0f32; 3]; 3];
         for a in 0..3 {
             let m = o[a].abs().max(cmax[a]);
             if (inv[a].abs() * m).partial_cmp(&((1u128 << 100) as f32)) != Some(std::cmp::Ordering::Less) {
-                (c[0][a], c[1][a], c[2][a], c[3][a]) = (0.0, f32::INFINITY, 0.0, f32::NEG_INFINITY);
+                (c[0][a], c[1][a], c[2][a]) = (0.0, f32::INFINITY, f32::NEG_INFINITY);
                 continue;
             }
             let s = 16.0 * f32::EPSILON * oi[a].abs() + f32::MIN_POSITIVE;
-            (c[0][a], c[1][a], c[2][a], c[3][a]) = (inv[a], oi[a] + s, inv[a] * FAR_WIDEN, oi[a] * FAR_WIDEN - s);
+            (c[0][a], c[1][a], c[2][a]) = (inv[a], oi[a] + s, oi[a] - s);
         }
         (inv, planes, 4.0 * f32::EPSILON * big, c)
     }
@@ -205,7 +205,7 @@ mod tests {
             assert_eq!(bits(r.inv.to_array()), bits(inv), "{ray:?}");
             assert_eq!(r.planes, planes, "{ray:?}");
             assert_eq!(r.slack.to_bits(), slack.to_bits(), "{ray:?}");
-            assert_eq!([r.near_c, r.near_b, r.far_c, r.far_b].map(|v| bits(v.to_array())), c.map(bits), "{ray:?}");
+            assert_eq!([r.c, r.near_b, r.far_b].map(|v| bits(v.to_array())), c.map(bits), "{ray:?}");
         }
     }
 }

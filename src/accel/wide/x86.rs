@@ -3,13 +3,14 @@
 //! into a chain of packs instead of one `movmskps`, which cost ~15 % of the traversal.
 //! Also the branch-free ordering of a node's hit children at the AVX-512 level.
 
-use super::ray::{FAR_WIDEN, ROBUST, RayPre};
+use super::ray::{FAR_ULPS, ROBUST, RayPre};
 use super::stack::Entry;
 use std::arch::x86_64::*;
 
 /// 8 lanes with AVX2/FMA: t = plane·c − b in one fused operation per plane
 /// (measured 1.1–1.3× faster traversal than subtract-then-multiply), with the
-/// widening folded into c and b ([`RayPre::fast_planes`]). The distances are
+/// absolute margins in b and the relative one an integer addition to the exit
+/// ([`RayPre::fast_planes`]). The distances are
 /// compared as signed integers, which order non-negative floats as floats do and
 /// put every negative float below +0: the entry distance max(near, +0) and a
 /// negative far distance (box behind the origin) come out right, and the folds
@@ -27,12 +28,14 @@ pub(super) unsafe fn node_test8(planes: &[*const f32; 6], r: &RayPre, t_max: f32
     unsafe {
         let t = |k: usize| {
             let a = k % 3;
-            let (c, b) = if k < 3 { (r.near_c[a], r.near_b[a]) } else { (r.far_c[a], r.far_b[a]) };
-            _mm256_castps_si256(_mm256_fmsub_ps(_mm256_loadu_ps(planes[k]), _mm256_set1_ps(c), _mm256_set1_ps(b)))
+            let b = if k < 3 { r.near_b[a] } else { r.far_b[a] };
+            _mm256_castps_si256(_mm256_fmsub_ps(_mm256_loadu_ps(planes[k]), _mm256_set1_ps(r.c[a]), _mm256_set1_ps(b)))
         };
         let t0 = _mm256_max_epi32(_mm256_max_epi32(t(0), t(1)), _mm256_max_epi32(t(2), _mm256_setzero_si256()));
-        let t1 =
-            _mm256_min_epi32(_mm256_min_epi32(t(3), t(4)), _mm256_min_epi32(t(5), _mm256_set1_epi32((t_max * FAR_WIDEN).to_bits() as i32)));
+        let t1 = _mm256_min_epi32(_mm256_min_epi32(t(3), t(4)), _mm256_min_epi32(t(5), _mm256_set1_epi32(t_max.to_bits() as i32)));
+        // Widened as integers: a non-negative float grows by FAR_ULPS ulps, a
+        // negative one (a box behind the origin, or NaN) stays negative.
+        let t1 = _mm256_add_epi32(t1, _mm256_set1_epi32(FAR_ULPS));
         _mm256_storeu_si256(tmin as *mut __m256i, t0);
         !_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(t0, t1))) as u32 & 0xff
     }
@@ -261,6 +264,43 @@ mod tests {
         }
         assert!(hits > 5_000, "{hits} boxes hit");
         assert!(agree as f64 > 0.9998 * lanes as f64, "{agree} of {lanes} lanes agree with the exact test");
+    }
+
+    /// Boxes the ray only grazes, entry = exit = T exactly (its near y plane and far
+    /// x plane both at T = 2^k, from the world origin, where o·inv is 0 and no
+    /// absolute margin helps): the rounding of 1/d puts the computed entry above
+    /// the exit about as often as below, so this fails without the exit's relative
+    /// widening ([`FAR_ULPS`]).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn grazed_boxes_are_kept() {
+        if detect_simd() == Simd::Portable {
+            eprintln!("skipped: no AVX2 on this CPU");
+            return;
+        }
+        let mut seed = 3u64;
+        for k in 0..4000 {
+            let t = 2f32.powi(k % 20 - 10);
+            let d = [0.1 + rnd(&mut seed), 0.1 + rnd(&mut seed), 0.1 + rnd(&mut seed)];
+            let mut n = Node::<8>::empty();
+            for i in 0..8 {
+                // Exact products: t is a power of two.
+                let (px, py) = (t * d[0], t * d[1]);
+                (n.lo[0][i], n.hi[0][i]) = (px - (1 + i) as f32 * t, px);
+                (n.lo[1][i], n.hi[1][i]) = (py, py + (1 + i) as f32 * t);
+                (n.lo[2][i], n.hi[2][i]) = (-1e3, 1e3);
+                n.child[i] = i as u32;
+            }
+            let ray = Ray::new(Vec3::ZERO, Vec3::from(d));
+            let mut r = RayPre::new::<8>(&ray);
+            r.fast_planes([1e3; 3]);
+            let base = &n as *const Node<8> as *const u8;
+            let planes = r.planes.map(|off| base.wrapping_add(off) as *const f32);
+            let mut tmin = [0.0f32; 8];
+            // SAFETY: AVX2 and FMA checked above; every plane array and `tmin` hold 8 floats.
+            let mask = unsafe { x86::node_test8(&planes, &r, f32::INFINITY, tmin.as_mut_ptr()) };
+            assert_eq!(mask, 0xff, "ray {k}: d {d:?}, t {t}: grazed lanes culled");
+        }
     }
 
     /// The branch-free ordering of three or more hit children: the nearest is
