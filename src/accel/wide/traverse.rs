@@ -273,6 +273,9 @@ impl<const N: usize> WideBvh<N> {
             r.slack += QNode::<N>::slack(r.o.to_array(), r.inv.to_array(), self.cmax);
         } else if L >= AVX2 && N == 8 {
             r.fast_planes(self.cmax);
+            // Its entry distances err only relatively (within ROBUST), so popping
+            // needs no absolute slack (and the set-up none of its instructions).
+            r.slack = 0.0;
         }
         r
     }

@@ -34,10 +34,11 @@ pub(super) unsafe fn node_test8(planes: &[*const f32; 6], r: &RayPre, t_max: f32
         let t0 = _mm256_max_epi32(_mm256_max_epi32(t(0), t(1)), _mm256_max_epi32(t(2), _mm256_setzero_si256()));
         let t1 = _mm256_min_epi32(_mm256_min_epi32(t(3), t(4)), _mm256_min_epi32(t(5), _mm256_set1_epi32(t_max.to_bits() as i32)));
         // Widened as integers: a non-negative float grows by FAR_ULPS ulps, a
-        // negative one (a box behind the origin, or NaN) stays negative.
-        let t1 = _mm256_add_epi32(t1, _mm256_set1_epi32(FAR_ULPS));
+        // negative one (a box behind the origin, or NaN) stays negative; one more, so
+        // that t0 ≤ t1 + FAR_ULPS is one comparison, t1 + FAR_ULPS + 1 > t0.
+        let t1 = _mm256_add_epi32(t1, _mm256_set1_epi32(FAR_ULPS + 1));
         _mm256_storeu_si256(tmin as *mut __m256i, t0);
-        !_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(t0, t1))) as u32 & 0xff
+        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(t1, t0))) as u32
     }
 }
 
