@@ -38,7 +38,7 @@ pub(super) fn node_test<const N: usize, const L: u8>(n: &Node<N>, r: &RayPre, t_
         }
     }
     // Plane k: near (k < 3) or far on axis k % 3.
-    let plane = |k: usize| if r.neg[k % 3] == (k < 3) { &n.hi[k % 3] } else { &n.lo[k % 3] };
+    let plane = |k: usize| if (r.octant >> (k % 3) & 1 == 1) == (k < 3) { &n.hi[k % 3] } else { &n.lo[k % 3] };
     slab_lanes::<N>(|k, i| (plane(k)[i] - r.o[k % 3]) * r.inv[k % 3], t_max, 0.0, tmin)
 }
 

@@ -51,8 +51,9 @@ impl<const N: usize, const E: usize> Planes<N, E> {
 pub(super) struct RayPre {
     pub(super) o: Vec3A,
     pub(super) inv: Vec3A,
-    /// Per axis: the near plane is the box maximum (direction negative).
-    pub(super) neg: [bool; 3],
+    /// The direction octant: bit a set where the direction is negative on axis a
+    /// (there the near plane is the box maximum).
+    pub(super) octant: usize,
     /// Byte offsets in a node of the near (x, y, z) then far (x, y, z) plane arrays,
     /// chosen once per ray so the node test does no per-node selection.
     pub(super) planes: [usize; 6],
@@ -85,14 +86,13 @@ impl RayPre {
         let oi = o * inv;
         let aoi = oi.abs();
         let big = Vec3A::select(aoi.cmplt(Vec3A::INFINITY), aoi, Vec3A::ZERO).max_element();
-        let neg = inv.cmplt(Vec3A::ZERO).bitmask() as usize & 7;
-        let nb = |a: usize| neg >> a & 1 == 1;
+        let octant = inv.cmplt(Vec3A::ZERO).bitmask() as usize & 7;
         let z = Vec3A::ZERO;
         RayPre {
             o,
             inv,
-            neg: [nb(0), nb(1), nb(2)],
-            planes: Planes::<N, 4>::BY_OCTANT[neg],
+            octant,
+            planes: Planes::<N, 4>::BY_OCTANT[octant],
             qplanes: [0; 6],
             oi,
             slack: 4.0 * f32::EPSILON * big,
@@ -105,8 +105,7 @@ impl RayPre {
     /// Sets [`RayPre::qplanes`], the plane offsets in quantised N-wide nodes.
     #[inline(always)]
     pub(super) fn quantised_planes<const N: usize>(&mut self) {
-        let octant = self.neg[0] as usize | (self.neg[1] as usize) << 1 | (self.neg[2] as usize) << 2;
-        self.qplanes = Planes::<N, 1>::BY_OCTANT[octant];
+        self.qplanes = Planes::<N, 1>::BY_OCTANT[self.octant];
     }
 
     /// Plane-distance coefficients for the node test that compares distances as

@@ -182,6 +182,28 @@ mod tests {
     use glam::Vec3;
     use std::mem::MaybeUninit;
 
+    /// Whether this CPU lacks AVX2 (and the test is skipped, saying so).
+    fn no_avx2() -> bool {
+        let none = detect_simd() == Simd::Portable;
+        if none {
+            eprintln!("skipped: no AVX2 on this CPU");
+        }
+        none
+    }
+
+    /// [`x86::node_test8`] on node `n` for `ray` in a scene of coordinates up to
+    /// `cmax`: the hit mask and the entry distances. The caller checked AVX2.
+    fn test_node(n: &Node<8>, ray: &Ray, cmax: [f32; 3], t_max: f32) -> (u32, [f32; 8]) {
+        let mut r = RayPre::new::<8>(ray);
+        r.fast_planes(cmax);
+        let base = n as *const Node<8> as *const u8;
+        let planes = r.planes.map(|off| base.wrapping_add(off) as *const f32);
+        let mut tmin = [0.0f32; 8];
+        // SAFETY: AVX2 and FMA checked by the caller; every plane array and `tmin` hold 8 floats.
+        let mask = unsafe { x86::node_test8(&planes, &r, t_max, tmin.as_mut_ptr()) };
+        (mask, tmin)
+    }
+
     /// The integer node test against exact slab intersection in f64: it must report
     /// every box the ray meets on [0, t_max] (closed), never an empty lane, an entry
     /// distance no larger than the exact one times [`ROBUST`], and otherwise agree
@@ -191,8 +213,7 @@ mod tests {
     #[test]
     fn integer_node_test_is_conservative_and_skips_empty_lanes() {
         use crate::math::hash_words;
-        if detect_simd() == Simd::Portable {
-            eprintln!("skipped: no AVX2 on this CPU");
+        if no_avx2() {
             return;
         }
         let unit = |k: u64, s: u64| (hash_words(&[k, s]) >> 40) as f32 / (1u64 << 24) as f32;
@@ -221,14 +242,7 @@ mod tests {
                 continue;
             }
             let t_max = if k % 4 == 0 { 1.5 } else { f32::INFINITY };
-            let ray = Ray::new(Vec3::from(o), Vec3::from(d));
-            let mut r = RayPre::new::<8>(&ray);
-            r.fast_planes(cmax);
-            let base = &n as *const Node<8> as *const u8;
-            let planes = r.planes.map(|off| base.wrapping_add(off) as *const f32);
-            let mut tmin = [0.0f32; 8];
-            // SAFETY: AVX2 and FMA checked above; every plane array and `tmin` hold 8 floats.
-            let mask = unsafe { x86::node_test8(&planes, &r, t_max, tmin.as_mut_ptr()) };
+            let (mask, tmin) = test_node(&n, &Ray::new(Vec3::from(o), Vec3::from(d)), cmax, t_max);
             for (i, &entry) in tmin.iter().enumerate() {
                 let got = mask >> i & 1 == 1;
                 if i >= filled {
@@ -275,8 +289,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn grazed_boxes_are_kept() {
-        if detect_simd() == Simd::Portable {
-            eprintln!("skipped: no AVX2 on this CPU");
+        if no_avx2() {
             return;
         }
         let mut seed = 3u64;
@@ -292,14 +305,7 @@ mod tests {
                 (n.lo[2][i], n.hi[2][i]) = (-1e3, 1e3);
                 n.child[i] = i as u32;
             }
-            let ray = Ray::new(Vec3::ZERO, Vec3::from(d));
-            let mut r = RayPre::new::<8>(&ray);
-            r.fast_planes([1e3; 3]);
-            let base = &n as *const Node<8> as *const u8;
-            let planes = r.planes.map(|off| base.wrapping_add(off) as *const f32);
-            let mut tmin = [0.0f32; 8];
-            // SAFETY: AVX2 and FMA checked above; every plane array and `tmin` hold 8 floats.
-            let mask = unsafe { x86::node_test8(&planes, &r, f32::INFINITY, tmin.as_mut_ptr()) };
+            let (mask, _) = test_node(&n, &Ray::new(Vec3::ZERO, Vec3::from(d)), [1e3; 3], f32::INFINITY);
             assert_eq!(mask, 0xff, "ray {k}: d {d:?}, t {t}: grazed lanes culled");
         }
     }
@@ -308,8 +314,7 @@ mod tests {
     /// returned, the others come farthest first, none is lost or invented.
     #[test]
     fn sorted_push_of_many_hits() {
-        if detect_simd() == Simd::Portable {
-            eprintln!("no AVX2 on this CPU: the sorted push is not used, nothing to check");
+        if no_avx2() {
             return;
         }
         let mut seed = 11u64;
