@@ -91,7 +91,7 @@ def main():
     inside = ["--inside"] if a.inside else []
     rows = []
     with tempfile.TemporaryDirectory() as work:
-        pl = [a.photonlab, "bench", "accel", "--obj", a.obj, "--rays", str(a.rays), "--accel", a.accel] + inside
+        pl = [a.photonlab, "bench", "accel", "--obj", a.obj, "--rays", str(a.rays), "--accel", a.accel, "--no-counts"] + inside
         base = cachegrind(pl + ["--sets", ""], os.path.join(work, "pl_none.out"))
         for s in sets:
             t = cachegrind(pl + ["--sets", s], os.path.join(work, f"pl_{s}.out"))

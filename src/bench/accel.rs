@@ -62,6 +62,12 @@ pub struct AccelArgs {
     /// (`tools/ray_instructions.py`, under `valgrind --tool=cachegrind`) needs.
     #[arg(long, value_delimiter = ',', default_value = "camera,diffuse,shadow")]
     pub sets: Vec<String>,
+    /// Skip the untimed second pass over each set that counts box and triangle tests
+    /// (`nodes/r` and `tris/r` then read `-`, `null` in JSON): the timed pass never
+    /// counts them, as renders do not, and an instruction count of the timed queries
+    /// alone needs this.
+    #[arg(long)]
+    pub no_counts: bool,
 }
 
 /// The ray sets of the benchmark, in the order they are traced.
@@ -75,6 +81,8 @@ pub struct TraceOpts {
     pub stream: usize,
     /// The sets traced (names of [`SETS`]).
     pub sets: Vec<String>,
+    /// Whether a second, untimed pass counts box and triangle tests per ray.
+    pub counts: bool,
 }
 
 /// The names of all ray sets, as `--sets` takes them.
@@ -85,7 +93,7 @@ pub fn all_sets() -> Vec<String> {
 impl TraceOpts {
     /// Every set, with streams of `stream` rays.
     pub fn all(stream: usize) -> Self {
-        TraceOpts { stream, sets: all_sets() }
+        TraceOpts { stream, sets: all_sets(), counts: true }
     }
 }
 
@@ -437,8 +445,9 @@ pub struct TraceResult {
 }
 
 /// Traces `rays` over `threads` threads, each a contiguous range (one ray at a time, or
-/// as a stream with `Query::Stream`).
-pub fn trace(accel: &dyn Accel, rays: &[BenchRay], query: Query, threads: usize) -> TraceResult {
+/// as a stream with `Query::Stream`), counting box and triangle tests if `count`
+/// (which costs time: [`TraversalStats::count_work`]).
+pub fn trace(accel: &dyn Accel, rays: &[BenchRay], query: Query, threads: usize, count: bool) -> TraceResult {
     let threads = threads.max(1);
     let chunk = rays.len().div_ceil(threads).max(1);
     let t0 = Instant::now();
@@ -448,7 +457,7 @@ pub fn trace(accel: &dyn Accel, rays: &[BenchRay], query: Query, threads: usize)
             .map(|part| {
                 s.spawn(move || {
                     let c0 = thread_cpu_secs();
-                    let mut st = TraversalStats::default();
+                    let mut st = TraversalStats { count_work: count, ..Default::default() };
                     let mut hits = 0u64;
                     match query {
                         Query::Closest => {
@@ -516,10 +525,10 @@ pub struct BenchRow {
     pub hit_fraction: f64,
     /// Rays in the set.
     pub n_rays: usize,
-    /// Ray/box tests per ray.
-    pub node_tests_per_ray: f64,
-    /// Ray/triangle tests per ray.
-    pub tri_tests_per_ray: f64,
+    /// Ray/box tests per ray (from the untimed counting pass; `None` without it).
+    pub node_tests_per_ray: Option<f64>,
+    /// Ray/triangle tests per ray (as `node_tests_per_ray`).
+    pub tri_tests_per_ray: Option<f64>,
     /// Bytes of the structure (nodes + triangle data).
     pub memory_bytes: usize,
     /// SAH cost as Embree's `verbose=3` statistics print it (wide BVHs only).
@@ -596,8 +605,9 @@ pub fn run_mesh(
             continue;
         }
         for (name, acc, build_s) in &built {
-            let r = trace(acc.as_ref(), rays, query, threads);
+            let r = trace(acc.as_ref(), rays, query, threads, false);
             let n = rays.len() as f64;
+            let counted = opts.counts.then(|| trace(acc.as_ref(), rays, query, threads, true).stats);
             rows.push(BenchRow {
                 engine: format!("photonlab-{name}"),
                 scene: scene.clone(),
@@ -610,8 +620,8 @@ pub fn run_mesh(
                 cpu_mrays_per_s: n / r.cpu_secs.max(1e-12) * 1e-6,
                 hit_fraction: r.hits as f64 / n,
                 n_rays: rays.len(),
-                node_tests_per_ray: r.stats.node_tests as f64 / n,
-                tri_tests_per_ray: r.stats.tri_tests as f64 / n,
+                node_tests_per_ray: counted.map(|c| c.node_tests as f64 / n),
+                tri_tests_per_ray: counted.map(|c| c.tri_tests as f64 / n),
                 memory_bytes: acc.memory_bytes(),
                 sah: acc.sah_cost(),
                 simd: acc.simd_level(),
@@ -641,7 +651,7 @@ pub fn print_table(rows: &[BenchRow]) {
     );
     for r in rows {
         outln!(
-            "{:<24} {:<18} {:<8} {:<10} {:>3} {:>9.3} {:>9.3} {:>8.4} {:>9} {:>8.1} {:>8.2} {:>8.3} {:>7.1}",
+            "{:<24} {:<18} {:<8} {:<10} {:>3} {:>9.3} {:>9.3} {:>8.4} {:>9} {:>8} {:>8} {:>8.3} {:>7.1}",
             r.scene,
             r.engine,
             r.rays,
@@ -651,8 +661,8 @@ pub fn print_table(rows: &[BenchRow]) {
             r.cpu_mrays_per_s,
             r.hit_fraction,
             r.n_rays,
-            r.node_tests_per_ray,
-            r.tri_tests_per_ray,
+            r.node_tests_per_ray.map_or("-".into(), |v| format!("{v:.1}")),
+            r.tri_tests_per_ray.map_or("-".into(), |v| format!("{v:.2}")),
             r.build_s,
             r.memory_bytes as f64 / 1e6
         );
@@ -675,7 +685,15 @@ pub fn run(a: &AccelArgs) -> Result<()> {
     if a.stream > 64 {
         bail!("--stream: at most 64 rays in flight, got {}", a.stream);
     }
-    let rows = run_mesh(&mesh, &a.accel, a.rays, a.inside, a.threads, a.builds, &TraceOpts { stream: a.stream, sets: a.sets.clone() })?;
+    let rows = run_mesh(
+        &mesh,
+        &a.accel,
+        a.rays,
+        a.inside,
+        a.threads,
+        a.builds,
+        &TraceOpts { stream: a.stream, sets: a.sets.clone(), counts: !a.no_counts },
+    )?;
     if a.json {
         for r in &rows {
             outln!("{}", serde_json::to_string(r)?);
@@ -731,15 +749,21 @@ mod tests {
         // leaves towards the interior and hits the shell again (a wrongly flipped
         // normal or offset would let rays escape), every origin sees the light.
         let mut st = TraversalStats::default();
-        assert_eq!(trace(acc.as_ref(), &s.diffuse, Query::Closest, 2).hits, 1000);
+        assert_eq!(trace(acc.as_ref(), &s.diffuse, Query::Closest, 2, false).hits, 1000);
         assert_eq!(s.shadow.len(), 1000);
-        assert_eq!(trace(acc.as_ref(), &s.shadow, Query::Any, 1).hits, 0);
+        assert_eq!(trace(acc.as_ref(), &s.shadow, Query::Any, 1, false).hits, 0);
         // Streams: the same hits and traversal counts as one ray at a time.
         let w = registry::make_accel("bvh8", &mesh.tris).unwrap();
-        let one = trace(w.as_ref(), &s.diffuse, Query::Closest, 1);
+        let one = trace(w.as_ref(), &s.diffuse, Query::Closest, 1, true);
+        assert!(one.stats.node_tests > 0 && one.stats.tri_tests > 0, "{:?}", one.stats);
         for k in [2, 4, 8] {
-            let st = trace(w.as_ref(), &s.diffuse, Query::Stream(k), 2);
+            let st = trace(w.as_ref(), &s.diffuse, Query::Stream(k), 2, true);
             assert_eq!((st.hits, st.stats), (one.hits, one.stats), "stream{k}");
+            // Without counting, neither counts.
+            let (a, b) =
+                (trace(w.as_ref(), &s.diffuse, Query::Stream(k), 2, false), trace(w.as_ref(), &s.diffuse, Query::Closest, 1, false));
+            assert_eq!((a.hits, a.stats.node_tests + a.stats.tri_tests), (one.hits, 0), "stream{k}");
+            assert_eq!((b.hits, b.stats.node_tests + b.stats.tri_tests), (one.hits, 0));
         }
         for r in &s.shadow {
             assert!(r.tfar > 0.0 && r.tfar.is_finite() && !acc.occluded(&Ray::new(r.o, r.d), r.tfar, &mut st));
@@ -752,7 +776,7 @@ mod tests {
     #[test]
     fn only_the_chosen_ray_sets_are_traced() {
         let mesh = BenchMesh::from_builtin("furnace").unwrap();
-        let sets = |names: &[&str], stream| TraceOpts { stream, sets: names.iter().map(|s| s.to_string()).collect() };
+        let sets = |names: &[&str], stream| TraceOpts { stream, sets: names.iter().map(|s| s.to_string()).collect(), counts: true };
         let run = |o: &TraceOpts| run_mesh(&mesh, &["bvh8".into()], 500, true, 1, 1, o);
         let rows = run(&sets(&["shadow", "camera"], 4)).unwrap();
         let got: Vec<(&str, &str)> = rows.iter().map(|r| (r.rays.as_str(), r.api.as_str())).collect();

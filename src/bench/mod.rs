@@ -66,6 +66,7 @@ fn run_all(json: bool) -> Result<()> {
             json,
             stream: 8,
             sets: accel::all_sets(),
+            no_counts: false,
         })?;
     }
     // The kd-tree-vs-kiddo comparison needs the optional `kiddo` feature; without it

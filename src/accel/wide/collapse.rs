@@ -2,7 +2,7 @@
 //! 2017): a bottom-up dynamic programme over SAH costs, then the emission of the
 //! chosen nodes and leaves (laid out depth-first).
 
-use super::node::{LEAF, Node};
+use super::node::{LEAF, Node, node_ref};
 use super::tri_block::TriBlock;
 use crate::accel::bvh::BuildNode;
 use glam::Vec3;
@@ -167,7 +167,7 @@ pub(super) fn collapse<const N: usize>(node: &BuildNode, at: usize, dp: &[DpEntr
         filled.child[slot] = collapse(k, *kat, dp, out, depth + 1);
     }
     out.nodes[idx] = filled;
-    idx as u32
+    node_ref::<N>(idx)
 }
 
 /// Pushes the blocks of a leaf over build-order range `first..end`; its reference.

@@ -11,7 +11,7 @@ use super::WideBvh;
 use super::cpu::{AVX2, PORTABLE, Simd};
 use super::node::LEAF;
 use super::ray::{ROBUST, RayPre, traceable};
-use super::stack::Stack;
+use super::stack::{Items, Stack, items};
 use super::traverse::STACK;
 use crate::accel::{Accel, TraversalStats};
 use crate::geometry::{Hit, Ray};
@@ -22,7 +22,7 @@ struct Lane {
     ray: Ray,
     best: Option<Hit>,
     t_best: f32,
-    stack: Stack<STACK>,
+    stack: Stack<Items<STACK>>,
     cur: u32,
     /// Index of the ray in the stream.
     idx: usize,
@@ -103,7 +103,7 @@ impl<const N: usize> WideBvh<N> {
             ray: placeholder,
             best: None,
             t_best: 0.0,
-            stack: Stack::new(),
+            stack: Stack::new(items()),
             cur: 0,
             idx: 0,
             node_tests: 0,
@@ -125,8 +125,12 @@ impl<const N: usize> WideBvh<N> {
                     continue;
                 }
                 out[lane.idx] = lane.best;
-                stats.node_tests += lane.node_tests;
-                stats.tri_tests += lane.tri_tests;
+                // Counted in the lane's memory either way (no registers to spare
+                // here), reported only when asked, as by the single-ray traversal.
+                if stats.count_work {
+                    stats.node_tests += lane.node_tests;
+                    stats.tri_tests += lane.tri_tests;
+                }
                 if let Some(idx) = claim(rays, out, &mut next) {
                     self.start::<L>(lane, rays, idx);
                 } else {
@@ -213,12 +217,13 @@ mod tests {
             })
             .collect();
         for (simd, bvh) in trees_at_every_level(&tris) {
-            let mut st = TraversalStats::default();
+            let mut st = TraversalStats::counting_work();
             let single: Vec<_> = rays.iter().map(|(r, t)| bvh.intersect(r, *t, &mut st)).collect();
             assert!(single.iter().filter(|h| h.is_some()).count() > 1000);
+            assert!(st.node_tests > 0 && st.tri_tests > 0, "{st:?}");
             for k in [1, 2, 3, 4, 8] {
                 let mut out = vec![None; rays.len()];
-                let mut s2 = TraversalStats::default();
+                let mut s2 = TraversalStats::counting_work();
                 bvh.intersect_stream(&rays, &mut out, k, &mut s2);
                 assert_eq!(out, single, "{} {simd:?} k = {k}", bvh.name());
                 assert_eq!(s2, st, "{} {simd:?} k = {k}: same node and triangle tests", bvh.name());

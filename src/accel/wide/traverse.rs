@@ -3,11 +3,11 @@
 //! level chosen at build time.
 
 use super::cpu::{AVX2, AVX512, PORTABLE, Simd};
-use super::node::{LEAF, Node};
+use super::node::{LEAF, Node, node_index};
 use super::node_test::{node_test, qnode_test};
 use super::qnode::QNode;
 use super::ray::{ROBUST, RayPre, traceable};
-use super::stack::Stack;
+use super::stack::{Entry, Stack, items};
 use super::tri_block::TriBlock;
 #[cfg(target_arch = "x86_64")]
 use super::x86;
@@ -15,22 +15,23 @@ use super::{MAX_DEPTH, WideBvh};
 use crate::accel::{Accel, TraversalStats, replaces, test_limit};
 use crate::geometry::{Hit, Ray};
 use glam::Vec3;
+use std::mem::MaybeUninit;
 
 /// Stack capacity for the widest tree (N = 8).
 pub(super) const STACK: usize = 7 * MAX_DEPTH + 8;
 
 /// The closest-hit and any-hit entry points of one traversal level, compiled with
 /// that level's target features (the `#[inline(always)]` traversal is compiled
-/// into each).
+/// into each), one function per counting choice W.
 macro_rules! simd_entries {
     ($intersect:ident, $occluded:ident, $level:ident, $features:literal) => {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        fn $intersect(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+        fn $intersect<const W: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
             if self.quant {
-                self.intersect_impl::<$level, true>(ray, t_max, stats)
+                self.intersect_impl::<$level, true, W>(ray, t_max, stats)
             } else {
-                self.intersect_impl::<$level, false>(ray, t_max, stats)
+                self.intersect_impl::<$level, false, W>(ray, t_max, stats)
             }
         }
 
@@ -46,9 +47,18 @@ macro_rules! simd_entries {
     };
 }
 
+/// Calls `$f::<W>` with the counting choice of `$stats`.
+macro_rules! counting {
+    ($bvh:expr, $f:ident, $ray:expr, $t_max:expr, $stats:expr) => {
+        if $stats.count_work { $bvh.$f::<true>($ray, $t_max, $stats) } else { $bvh.$f::<false>($ray, $t_max, $stats) }
+    };
+}
+
 impl<const N: usize> WideBvh<N> {
+    /// The closest-hit traversal at SIMD level L, on quantised nodes if Q, counting
+    /// box and triangle tests if W.
     #[inline(always)]
-    fn intersect_impl<const L: u8, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+    fn intersect_impl<const L: u8, const Q: bool, const W: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
         stats.rays += 1;
         if (self.nodes.is_empty() && self.qnodes.is_empty()) || !traceable(ray) {
             return None;
@@ -57,15 +67,17 @@ impl<const N: usize> WideBvh<N> {
         let (o, d) = (ray.o, ray.d);
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
-        let mut stack = Stack::<STACK>::new();
+        let mut store = items::<STACK>();
+        let mut stack = Stack::new(&mut store);
         let mut cur = 0u32;
         let mut tmin = [0.0f32; N];
-        // Counted locally (kept in registers), added to `stats` on return.
+        // Counted locally (kept in registers), added to `stats` on return; without W
+        // they stay 0 and take no register.
         let (mut node_tests, mut tri_tests) = (0u64, 0u64);
         loop {
             if cur & LEAF == 0 {
                 let (mut mask, child) = self.visit::<L, Q>(cur, &r, t_best, &mut tmin);
-                node_tests += N as u64;
+                node_tests += W as u64 * N as u64;
                 if mask != 0 {
                     let i = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -96,7 +108,7 @@ impl<const N: usize> WideBvh<N> {
                     continue;
                 }
             } else {
-                tri_tests += self.leaf_closest(cur, o, d, &mut t_best, &mut best);
+                tri_tests += W as u64 * self.leaf_closest(cur, o, d, &mut t_best, &mut best);
             }
             // Pop the next entry that can still hold a closer hit.
             loop {
@@ -116,6 +128,10 @@ impl<const N: usize> WideBvh<N> {
         }
     }
 
+    /// The any-hit traversal, with the parameters L and Q of [`Self::intersect_impl`].
+    /// It always counts its tests: without the two counters LLVM kept the node
+    /// test's per-ray vectors in memory for the whole loop (three times the loads
+    /// per query on Sponza-inside shadow rays, and slower), so counting is free here.
     #[inline(always)]
     fn occluded_impl<const L: u8, const Q: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {
         stats.shadow_rays += 1;
@@ -124,7 +140,8 @@ impl<const N: usize> WideBvh<N> {
         }
         let r = self.ray_pre::<L, Q>(ray);
         let (o, d) = (ray.o, ray.d);
-        let mut stack = Stack::<STACK>::new();
+        let mut store = items::<STACK>();
+        let mut stack = Stack::new(&mut store);
         let mut cur = 0u32;
         let mut tmin = [0.0f32; N];
         // Counted locally (kept in registers), added to `stats` on return.
@@ -178,7 +195,7 @@ impl<const N: usize> WideBvh<N> {
         mask: u32,
         tmin: &[f32; N],
         child: &[u32; N],
-        stack: &mut Stack<STACK>,
+        stack: &mut Stack<impl AsMut<[MaybeUninit<Entry>]>>,
     ) -> u32 {
         #[cfg(target_arch = "x86_64")]
         if N == 8 && L >= AVX2 && !Q {
@@ -209,7 +226,7 @@ impl<const N: usize> WideBvh<N> {
         mut mask: u32,
         tmin: &[f32; N],
         child: &[u32; N],
-        stack: &mut Stack<STACK>,
+        stack: &mut Stack<impl AsMut<[MaybeUninit<Entry>]>>,
     ) -> u32 {
         let mut hits: [(u32, f32); N] = [(0, 0.0); N];
         hits[0] = (child[i], tmin[i]);
@@ -241,7 +258,9 @@ impl<const N: usize> WideBvh<N> {
         let blocks = self.leaf(cur);
         // The bound of the next test, updated with each new best hit.
         let mut limit = test_limit(*t_best, best);
-        for block in blocks {
+        let mut k = 0;
+        loop {
+            let block = &blocks[k];
             let (mut mask, t, u, v) = block.intersect(o, d, limit);
             if mask != 0 {
                 // The lane of least (t, triangle index).
@@ -260,6 +279,15 @@ impl<const N: usize> WideBvh<N> {
                     limit = test_limit(t[j], best);
                 }
             }
+            k += 1;
+            if k == blocks.len() {
+                break;
+            }
+            // Most leaves are one block (1.06 per leaf on Sponza): marking the loop's
+            // back edge cold keeps LLVM from treating the triangle test as the hottest
+            // code, which made it spill the node test's per-ray vectors for the whole
+            // traversal instead of around leaves.
+            std::hint::cold_path();
         }
         4 * blocks.len() as u64
     }
@@ -285,9 +313,9 @@ impl<const N: usize> WideBvh<N> {
     #[inline(always)]
     pub(super) fn visit<const L: u8, const Q: bool>(&self, cur: u32, r: &RayPre, t_max: f32, tmin: &mut [f32; N]) -> (u32, &[u32; N]) {
         if Q {
-            debug_assert!((cur as usize) < self.qnodes.len());
+            debug_assert!(node_index::<N>(cur) < self.qnodes.len());
             // SAFETY: as in `node`, for the quantised copy of the node array.
-            let q = unsafe { self.qnodes.get_unchecked(cur as usize) };
+            let q = unsafe { self.qnodes.get_unchecked(node_index::<N>(cur)) };
             (qnode_test::<N, L>(q, r, t_max, tmin), &q.child)
         } else {
             let n = self.node(cur);
@@ -298,10 +326,11 @@ impl<const N: usize> WideBvh<N> {
     /// The node of an interior reference.
     #[inline(always)]
     fn node(&self, child: u32) -> &Node<N> {
-        debug_assert!((child as usize) < self.nodes.len());
+        debug_assert!(node_index::<N>(child) < self.nodes.len());
         // SAFETY: interior references are made only by `collapse` (or are the root,
-        // 0, of a non-empty tree), each the index of a node it pushed.
-        unsafe { self.nodes.get_unchecked(child as usize) }
+        // 0, of a non-empty tree), each the `node_ref` of a node it pushed: that
+        // node's byte offset in the array, divided by 8.
+        unsafe { &*(self.nodes.as_ptr() as *const u8).add(child as usize * 8).cast::<Node<N>>() }
     }
 
     /// Starts fetching a child (its node's lines, or the first two triangle blocks of
@@ -317,9 +346,9 @@ impl<const N: usize> WideBvh<N> {
             // at a multiple of 32 B, so 3 lines hold one and 5 two).
             let (p, lines) = if child & LEAF == 0 {
                 if Q {
-                    (self.qnodes.as_ptr().wrapping_add(child as usize) as *const i8, 2)
+                    (self.qnodes.as_ptr().wrapping_add(node_index::<N>(child)) as *const i8, 2)
                 } else {
-                    (self.nodes.as_ptr().wrapping_add(child as usize) as *const i8, 4)
+                    ((self.nodes.as_ptr() as *const i8).wrapping_add(child as usize * 8), 4)
                 }
             } else {
                 (self.blocks.as_ptr().wrapping_add(((child & !LEAF) >> 3) as usize) as *const i8, if child & 7 == 0 { 3 } else { 5 })
@@ -342,6 +371,16 @@ impl<const N: usize> WideBvh<N> {
     }
 
     simd_entries!(intersect_avx2, occluded_avx2, AVX2, "avx2,fma,popcnt,bmi1,bmi2");
+
+    /// The entry points of the portable level (no target features).
+    fn intersect_portable<const W: bool>(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> Option<Hit> {
+        if self.quant {
+            self.intersect_impl::<PORTABLE, true, W>(ray, t_max, stats)
+        } else {
+            self.intersect_impl::<PORTABLE, false, W>(ray, t_max, stats)
+        }
+    }
+
     simd_entries!(intersect_avx512, occluded_avx512, AVX512, "avx2,fma,popcnt,bmi1,bmi2,avx512f,avx512vl,avx512bw,avx512dq");
 }
 
@@ -358,16 +397,12 @@ impl<const N: usize> Accel for WideBvh<N> {
         #[cfg(target_arch = "x86_64")]
         match self.simd {
             // SAFETY: `simd` names only a level the CPU reported (`detect_simd`).
-            Simd::Avx512 => return unsafe { self.intersect_avx512(ray, t_max, stats) },
+            Simd::Avx512 => return unsafe { counting!(self, intersect_avx512, ray, t_max, stats) },
             // SAFETY: as above.
-            Simd::Avx2 => return unsafe { self.intersect_avx2(ray, t_max, stats) },
+            Simd::Avx2 => return unsafe { counting!(self, intersect_avx2, ray, t_max, stats) },
             Simd::Portable => {}
         }
-        if self.quant {
-            self.intersect_impl::<PORTABLE, true>(ray, t_max, stats)
-        } else {
-            self.intersect_impl::<PORTABLE, false>(ray, t_max, stats)
-        }
+        counting!(self, intersect_portable, ray, t_max, stats)
     }
 
     fn occluded(&self, ray: &Ray, t_max: f32, stats: &mut TraversalStats) -> bool {

@@ -178,7 +178,7 @@ fn area_probes_along_axes_agree_with_minus_n_and_cull() {
     let center = Vec3::new(278.0, 274.0, 280.0);
     for (accel, wide) in [("bvh", false), ("bvh4", true), ("bvh8", true), ("bvh8q", true)] {
         let world = World::new(scene.clone(), make_accel(accel, &scene.triangles).unwrap()).unwrap();
-        let (mut old, mut new) = (TraversalStats::default(), TraversalStats::default());
+        let (mut old, mut new) = (TraversalStats::counting_work(), TraversalStats::counting_work());
         let (mut hits, mut n_probes) = (0, 0);
         for i in 0..20_000u64 {
             let h = crate::math::mix64(i ^ 0x9E0B);
