@@ -212,13 +212,13 @@ pub fn run(a: &EmbreeArgs) -> Result<()> {
             for &t in &a.threads {
                 // Back to back, so both engines see the same machine load.
                 let mut emb = run_harness(&harness, path, inside, t, a.rays)?;
-                let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, &TraceOpts::all(a.stream))?;
+                // The comparison rows carry no traversal counts: no counting pass.
+                let compare_opts = TraceOpts { counts: false, ..TraceOpts::all(a.stream) };
+                let mut ours = run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, &compare_opts)?;
                 let mut paired = vec![pair_rows(&emb, &ours)];
                 for _ in 1..a.repeats {
-                    let (e, o) = (
-                        run_harness(&harness, path, inside, t, a.rays)?,
-                        run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, &TraceOpts::all(a.stream))?,
-                    );
+                    let (e, o) =
+                        (run_harness(&harness, path, inside, t, a.rays)?, run_mesh(&mesh, &a.accel, a.rays, inside, t, 1, &compare_opts)?);
                     paired.push(pair_rows(&e, &o));
                     keep_best_embree(&mut emb, e);
                     keep_best_ours(&mut ours, o);

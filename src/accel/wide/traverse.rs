@@ -323,14 +323,20 @@ impl<const N: usize> WideBvh<N> {
         }
     }
 
+    /// The address of the float node of an interior reference (its byte offset / 8,
+    /// `node_ref`), for `node` and `prefetch`.
+    #[inline(always)]
+    fn node_ptr(&self, child: u32) -> *const Node<N> {
+        (self.nodes.as_ptr() as *const u8).wrapping_add(child as usize * 8).cast()
+    }
+
     /// The node of an interior reference.
     #[inline(always)]
     fn node(&self, child: u32) -> &Node<N> {
         debug_assert!(node_index::<N>(child) < self.nodes.len());
         // SAFETY: interior references are made only by `collapse` (or are the root,
-        // 0, of a non-empty tree), each the `node_ref` of a node it pushed: that
-        // node's byte offset in the array, divided by 8.
-        unsafe { &*(self.nodes.as_ptr() as *const u8).add(child as usize * 8).cast::<Node<N>>() }
+        // 0, of a non-empty tree), each the `node_ref` of a node it pushed.
+        unsafe { &*self.node_ptr(child) }
     }
 
     /// Starts fetching a child (its node's lines, or the first two triangle blocks of
@@ -348,7 +354,7 @@ impl<const N: usize> WideBvh<N> {
                 if Q {
                     (self.qnodes.as_ptr().wrapping_add(node_index::<N>(child)) as *const i8, 2)
                 } else {
-                    ((self.nodes.as_ptr() as *const i8).wrapping_add(child as usize * 8), 4)
+                    (self.node_ptr(child) as *const i8, 4)
                 }
             } else {
                 (self.blocks.as_ptr().wrapping_add(((child & !LEAF) >> 3) as usize) as *const i8, if child & 7 == 0 { 3 } else { 5 })
