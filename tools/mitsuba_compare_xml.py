@@ -14,9 +14,10 @@ any convention (camera, transforms, shapes, materials, textures, emitters) shows
 
 With --photonlab it prints both images' channel means, their ratio, and the 16-px block
 test: the mean over each block of the per-pixel difference (mean of RGB), its standard
-error from the spread of those differences inside the block, and how many blocks differ
-by more than 4 standard errors (blocks with a mean below 0.005 are not judged, as in
-`photonlab diff --block`).
+error from the spread of those differences inside the block (at least 1/40000 of the
+block's mean, so that a noise-free background is not judged on float rounding), and how
+many blocks differ by more than 4 standard errors (blocks with a mean below 0.005 are not
+judged, as in `photonlab diff --block`).
 """
 import argparse
 import os
@@ -52,9 +53,12 @@ def block_test(test, ref, size=16, min_ref=0.005, z=4.0):
             if rb.mean() <= min_ref:
                 continue
             d = (tb - rb).ravel()
-            se = d.std(ddof=1) / np.sqrt(d.size)
+            # A noise-free block (a constant background) has no spread: its standard
+            # error is floored at 1/40000 of its mean, so that 4 errors are 1e-4, above
+            # the float rounding of the two renderers' accumulations.
+            se = max(d.std(ddof=1) / np.sqrt(d.size), 2.5e-5 * rb.mean())
             judged += 1
-            zz = abs(d.mean()) / se if se > 0 else (0.0 if d.mean() == 0 else np.inf)
+            zz = abs(d.mean()) / se
             if zz > z:
                 outliers += 1
             if zz > worst[0]:

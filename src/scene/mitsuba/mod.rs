@@ -87,6 +87,7 @@ pub fn build(doc: &SceneXml, path: &Path) -> Result<Scene> {
     let mut one_sided: Vec<String> = Vec::new();
     for s in shapes {
         let mesh = shapes::shape_mesh(s, &mut warnings)?;
+        let emitter = s.child("emitter")?;
         let (mut material, texs) = match s.child("bsdf")? {
             Some(b) => match mapped.get(&Rc::as_ptr(&b)) {
                 Some(m) => m.clone(),
@@ -100,7 +101,10 @@ pub fn build(doc: &SceneXml, path: &Path) -> Result<Scene> {
                     v
                 }
             },
-            // Mitsuba's default: diffuse, reflectance 0.5 (one-sided).
+            // Mitsuba's default: diffuse, reflectance 0.5 (one-sided); black on an
+            // emitter (Mitsuba's `Shape` gives an area light without a BSDF a diffuse
+            // BSDF of reflectance 0, so it reflects nothing on either side).
+            None if emitter.is_some() => (Material::diffuse("default", Vec3::ZERO), Vec::new()),
             None => {
                 let d = "default (diffuse 0.5)".to_string();
                 if !one_sided.contains(&d) {
@@ -109,7 +113,7 @@ pub fn build(doc: &SceneXml, path: &Path) -> Result<Scene> {
                 (Material::diffuse("default", Vec3::splat(0.5)), Vec::new())
             }
         };
-        if let Some(e) = s.child("emitter")? {
+        if let Some(e) = emitter {
             material.emission = emitters::area(&e)?;
             material.name = format!("{}+area", material.name);
         }

@@ -28,6 +28,7 @@ fn shipped_scenes_load() {
         ("mi-envmap", false, true),
         ("mi-interior", false, false),
         ("mi-rough", true, false),
+        ("mi-open", false, false),
     ] {
         let s = load_scene(&scenes().join(format!("{name}.xml"))).unwrap_or_else(|e| panic!("{name}: {e}"));
         s.validate().unwrap();
@@ -56,8 +57,33 @@ fn camera_area_light_and_spp() {
     // Rotated +90° about x, the rectangle's +z normal points down: it lights the floor.
     assert!(s.geometric_normal(0).y < -0.999);
     assert_eq!(s.materials[0].emission, Vec3::splat(2.0));
-    // Mitsuba's default BSDF is one-sided: reported.
-    assert!(s.warnings.iter().any(|w| w.contains("one-sided")), "{:?}", s.warnings);
+    // An area light without a BSDF reflects nothing (Mitsuba's default BSDF for an
+    // emitter is black diffuse), so it is the same on both sides: no warning.
+    assert_eq!(s.materials[0].bsdf.diffuse_albedo(), Vec3::ZERO);
+    assert!(!s.warnings.iter().any(|w| w.contains("one-sided")), "{:?}", s.warnings);
+}
+
+#[test]
+fn default_bsdf_is_grey_diffuse_and_black_on_emitters() {
+    let d = tempfile::tempdir().unwrap();
+    let p = write(
+        d.path(),
+        "a.xml",
+        &format!(
+            "{SENSOR}\n<shape type=\"rectangle\"><transform name=\"to_world\"><translate z=\"-1\"/></transform></shape>\
+             <shape type=\"rectangle\"><transform name=\"to_world\"><rotate x=\"1\" angle=\"90\"/><translate y=\"1\"/></transform>\
+             <emitter type=\"area\"><rgb name=\"radiance\" value=\"2\"/></emitter></shape>"
+        ),
+    );
+    let s = load_scene(&p).unwrap();
+    assert_eq!(s.materials.len(), 2);
+    // A plain shape: diffuse 0.5, one-sided in Mitsuba, reported.
+    assert_eq!(s.materials[0].bsdf.diffuse_albedo(), Vec3::splat(0.5));
+    assert!(!s.materials[0].is_emitter());
+    assert!(s.warnings.iter().any(|w| w.contains("one-sided") && w.contains("default (diffuse 0.5)")), "{:?}", s.warnings);
+    // The emitter: black, so its reflection cannot brighten what it lights.
+    assert!(s.materials[1].is_emitter());
+    assert_eq!(s.materials[1].bsdf.diffuse_albedo(), Vec3::ZERO);
 }
 
 #[test]
