@@ -19,10 +19,16 @@ def unit(v):
 
 
 PAIRS = [(unit([0.3, 0.1, 0.9]), unit([-0.5, 0.2, 0.7])), (unit([0.8, 0.0, 0.2]), unit([-0.1, 0.6, 0.3]))]
+# Three more (normal viewer, the coating's mirror peak, a grazing viewer), used with the
+# smooth GGX plastic only.
+MORE_PAIRS = [(unit([0.0, 0.0, 1.0]), unit([0.2, 0.1, 0.9])), (unit([0.5, 0.0, 0.5]), unit([-0.5, 0.02, 0.5])),
+              (unit([0.9, 0.0, 0.1]), unit([0.0, 0.3, 0.95]))]
 BSDFS = {
     "roughplastic beckmann 0.3": {"type": "roughplastic", "distribution": "beckmann", "alpha": 0.3,
                                   "diffuse_reflectance": {"type": "rgb", "value": [0.6, 0.6, 0.55]}},
     "roughplastic ggx 0.15": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.15,
+                              "diffuse_reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}},
+    "roughplastic ggx 0.05": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.05,
                               "diffuse_reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}},
     "plastic": {"type": "plastic", "diffuse_reflectance": {"type": "rgb", "value": [0.7, 0.1, 0.1]}},
     "roughconductor Au beckmann 0.2": {"type": "roughconductor", "material": "Au", "distribution": "beckmann",
@@ -31,7 +37,7 @@ BSDFS = {
 
 for name, d in BSDFS.items():
     b = mi.load_dict(d)
-    for viewer, light in PAIRS:
+    for viewer, light in PAIRS + (MORE_PAIRS if name == "roughplastic ggx 0.05" else []):
         si = mi.SurfaceInteraction3f()
         si.wi = mi.Vector3f(viewer)
         si.n = mi.Normal3f(0, 0, 1)

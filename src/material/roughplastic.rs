@@ -271,10 +271,6 @@ mod tests {
     use super::super::*;
     use super::*;
 
-    /// f·cos and pdf against Mitsuba 3.9.1's own (`tools/mitsuba_bsdf_values.py`), at a
-    /// near-normal and a grazing viewer: within 1 % (the quadratures differ). With
-    /// t = 1 − R instead of Mitsuba's transmittance the grazing value is 11 % high, with
-    /// R_int as an exact integral every diffuse value 2 % high.
     #[test]
     fn gauss_legendre_is_exact_to_degree_2n_minus_1() {
         for n in [1usize, 2, 5, 32, 128] {
@@ -289,6 +285,11 @@ mod tests {
         }
     }
 
+    /// f·cos and pdf against Mitsuba 3.9.1's own (`tools/mitsuba_bsdf_values.py`), from
+    /// near-normal to grazing viewers, on and off the coating's peak: values within
+    /// 0.1 %, pdfs within 0.5 %. With t = 1 − R instead of Mitsuba's transmittance the
+    /// grazing value is 11 % high, with R_int as an exact integral every diffuse value 2 %
+    /// high, with a midpoint rule for the tables smooth GGX's 0.3–0.5 % high.
     #[test]
     fn matches_mitsuba_values() {
         let sp = ShadingPoint::new(Vec3::Z, Vec3::Z);
