@@ -15,7 +15,7 @@ use statrs::function::erf::{erf, erf_inv};
 use std::f64::consts::PI;
 
 /// Microfacet normal distribution (Mitsuba's `distribution` parameter).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum MicrofacetType {
     /// Beckmann (Gaussian slopes; Mitsuba 3's default).
     Beckmann,

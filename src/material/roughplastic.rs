@@ -125,10 +125,10 @@ pub fn rough_transmittance(mf: &Microfacet, mu: f32, eta: f32) -> f32 {
 /// (distribution, α, η) and process: Mitsuba's rule takes 128 × 128 points per cosine
 /// for R_int, 0.15 s (GGX) to 0.5 s (Beckmann) per interface.
 fn tables(distribution: MicrofacetType, alpha: f32, eta: f32) -> (Arc<[f32]>, f32) {
-    type Key = (bool, u32, u32);
+    type Key = (MicrofacetType, u32, u32);
     type Tables = (Arc<[f32]>, f32);
     static CACHE: OnceLock<Mutex<HashMap<Key, Tables>>> = OnceLock::new();
-    let key = (distribution == MicrofacetType::Ggx, alpha.to_bits(), eta.to_bits());
+    let key = (distribution, alpha.to_bits(), eta.to_bits());
     let cache = CACHE.get_or_init(Default::default);
     if let Some(t) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
         return t.clone();
